@@ -1,0 +1,31 @@
+"""Every tensordict key gentlerl reads or writes, in one place.
+
+Transforms, losses and the training loop take these as defaults for their ``in_keys`` /
+``out_keys`` / ``set_keys``; users remap them there instead of editing strings across modules.
+"""
+
+# Observations written by the hand environment (float32).
+JOINT_POS = "joint_pos"  # [24] joint angles (rad)
+JOINT_VEL = "joint_vel"  # [24] joint velocities (rad/s)
+TOUCH = "touch"  # [5, 3] per fingertip, per channel: sum over the 4x4 grid of |force| (N)
+TOUCH_GRID = "touch_grid"  # [5, 3, 4, 4] raw touch-grid readings (N)
+OBSERVATION = "observation"  # [63] flat state for actor / critic: joint_pos, joint_vel, touch
+PIXELS = "pixels"
+
+ACTION = "action"
+REWARD = "reward"  # task reward r_t, [1]
+DONE = "done"
+TERMINATED = "terminated"
+TRUNCATED = "truncated"
+SUCCESS = "success"  # [1] bool: the task's success condition was met at this step
+BROKEN = "broken"  # [1] bool: fragile task, the block broke at this step
+
+# Written by gentlerl.transforms.
+IMPACT = "impact"  # [n_sites] m_t^i (N)
+PENALTY = "penalty"  # [1] r^f_t
+DYNAMICS_SURPRISE = "dynamics_surprise"  # [1] r^s_t
+PENALTY_SURPRISE = "penalty_surprise"  # [1] r^{sp}_t
+ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
+
+# The dynamics model's three predicted feature groups (paper: one ensemble per group).
+DYNAMICS_FEATURES = (JOINT_POS, JOINT_VEL, TOUCH)
