@@ -1,0 +1,66 @@
+"""Distributional RL helpers for the D4PG learner (Bellemare 2017; Barth-Maron 2018)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+__all__ = ["categorical_projection"]
+
+
+def categorical_projection(
+    next_probs: torch.Tensor,
+    reward: torch.Tensor,
+    discount: torch.Tensor,
+    v_min: float,
+    v_max: float,
+) -> torch.Tensor:
+    r"""Project the distribution of ``reward + discount * Z'`` onto the fixed support of ``Z'``.
+
+    The C51 / D4PG target (Bellemare et al. 2017, Alg. 1; Barth-Maron et al. 2018, eq. 7): the atoms
+    :math:`z_j = v_{min} + j\,\Delta z` of the next-state distribution are moved to
+    :math:`\hat{T} z_j = \mathrm{clip}(r + d\, z_j, v_{min}, v_{max})` and each moved atom's mass
+    :math:`p_j` is split between its two neighbouring atoms by linear interpolation:
+
+    .. math::
+        (\Phi \hat{T} Z)_i = \sum_j \left[1 - \frac{|\hat{T} z_j - z_i|}{\Delta z}\right]_0^1 p_j .
+
+    The projection conserves mass, and the mean as long as no atom is clipped.
+
+    Args:
+        next_probs: ``[..., N]`` probabilities of the (target) next-state return distribution on
+            ``linspace(v_min, v_max, N)``.
+        reward: ``[...]`` (n-step) reward, broadcastable to ``next_probs.shape[:-1]``.
+        discount: ``[...]`` bootstrap discount, already holding :math:`\gamma^n` and the
+            not-terminated mask (0 for terminal transitions), broadcastable to
+            ``next_probs.shape[:-1]``.
+        v_min: lowest atom of the support.
+        v_max: highest atom of the support.
+
+    Returns:
+        ``[..., N]`` projected target probabilities (no gradient flows through the atom indices).
+    """
+    num_atoms = next_probs.shape[-1]
+    if num_atoms < 2:
+        raise ValueError(
+            "next_probs needs at least 2 atoms on its last dim, "
+            f"got shape {tuple(next_probs.shape)}"
+        )
+    if not (math.isfinite(v_min) and math.isfinite(v_max) and v_max > v_min):
+        raise ValueError(f"need finite v_min < v_max, got v_min={v_min}, v_max={v_max}")
+    delta = (v_max - v_min) / (num_atoms - 1)
+    support = torch.linspace(
+        v_min, v_max, num_atoms, device=next_probs.device, dtype=next_probs.dtype
+    )
+    moved = reward.unsqueeze(-1) + discount.unsqueeze(-1) * support
+    moved, probs = torch.broadcast_tensors(moved.clamp(v_min, v_max), next_probs)
+    position = (moved - v_min) / delta
+    lower = position.floor().clamp_(0, num_atoms - 1)
+    upper = position.ceil().clamp_(0, num_atoms - 1)
+    # When an atom lands exactly on the grid, lower == upper and it keeps its whole mass.
+    upper_weight = position - lower
+    projected = torch.zeros_like(probs)
+    projected.scatter_add_(-1, lower.long(), probs * (1.0 - upper_weight))
+    projected.scatter_add_(-1, upper.long(), probs * upper_weight)
+    return projected
