@@ -1,0 +1,21 @@
+"""Pure functions for the paper's equations (see ``../shared/STYLE.md`` for the name map)."""
+
+from gentlerl.functional.distributional import categorical_projection
+from gentlerl.functional.gentleness import (
+    acceptability,
+    gaussian_nll,
+    impact,
+    impact_penalty,
+    mixture_moments,
+    penalty_surprise,
+)
+
+__all__ = [
+    "acceptability",
+    "categorical_projection",
+    "gaussian_nll",
+    "impact",
+    "impact_penalty",
+    "mixture_moments",
+    "penalty_surprise",
+]

@@ -1,0 +1,150 @@
+"""The paper's gentleness equations (Huang et al. 2019, "Proposed Approach"), one function each.
+
+Shapes follow TorchRL: leading batch dims ``...``, then the feature dims named in each docstring.
+All functions are pure, differentiable where it makes sense, and finite for finite inputs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+__all__ = [
+    "acceptability",
+    "gaussian_nll",
+    "impact",
+    "impact_penalty",
+    "mixture_moments",
+    "penalty_surprise",
+]
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+def impact(force: torch.Tensor, next_force: torch.Tensor) -> torch.Tensor:
+    r"""Impact per sensor site, :math:`m_t^i = \sum_c \max(0, f^{i,c}_{t+1} - f^{i,c}_t)` (eq. 1).
+
+    The paper sums the per-channel force increase of each fingertip (section "Experimental domain").
+
+    Args:
+        force: ``[..., n_sites, n_channels]`` sensed force at step t (N).
+        next_force: same shape, sensed force at step t+1 (N).
+
+    Returns:
+        ``[..., n_sites]`` non-negative impact (N).
+    """
+    if force.shape != next_force.shape:
+        raise ValueError(
+            f"force and next_force must have the same shape [..., n_sites, n_channels], got "
+            f"{tuple(force.shape)} and {tuple(next_force.shape)}"
+        )
+    if force.ndim < 2:
+        raise ValueError(
+            f"force must have shape [..., n_sites, n_channels], got {tuple(force.shape)}"
+        )
+    return (next_force - force).clamp_min(0.0).sum(-1)
+
+
+def acceptability(x: torch.Tensor, lam1: float, lam2: float) -> torch.Tensor:
+    r"""Acceptability of an amount ``x``, :math:`a_\lambda(x) = 1 / (1 + e^{\lambda_1 (x - \lambda_2)})` (eq. 3).
+
+    A sigmoid that is ~1 well below ``lam2`` and ~0 well above it; ``lam1`` sets its steepness.
+    Computed as ``sigmoid(lam1 * (lam2 - x))``, which is finite for every finite input.
+    """
+    if lam1 < 0:
+        raise ValueError(f"lam1 (sigmoid steepness) must be >= 0, got {lam1}")
+    return torch.sigmoid(lam1 * (lam2 - x))
+
+
+def impact_penalty(impact: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0) -> torch.Tensor:
+    r"""Impact penalty :math:`r^f_t = -\sum_i (1 - a_\lambda(m^i_t))\, m^i_t` (eq. 4), :math:`\lambda = [2, 2]`.
+
+    Examples (``lam = [2, 2]``): a 1 N impact at one fingertip costs ``-(1 - sigmoid(2)) = -0.1192``;
+    a 2 N impact costs ``-(1 - sigmoid(0)) * 2 = -1.0``.
+
+    Args:
+        impact: ``[..., n_sites]`` impacts :math:`m^i_t` (N), from :func:`impact`.
+
+    Returns:
+        ``[...]`` penalty (<= 0).
+    """
+    return -((1.0 - acceptability(impact, lam1, lam2)) * impact).sum(-1)
+
+
+def mixture_moments(
+    mean: torch.Tensor, var: torch.Tensor, dim: int = 0
+) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Moments of an equally weighted Gaussian mixture (the ensemble's combined prediction).
+
+    .. math::
+        \mu_* = \frac{1}{M}\sum_i \mu_i, \qquad
+        \sigma^2_* = \frac{1}{M}\sum_i (\sigma_i^2 + \mu_i^2) - \mu_*^2
+                   = \frac{1}{M}\sum_i \sigma_i^2 + \frac{1}{M}\sum_i (\mu_i - \mu_*)^2 .
+
+    The second (equal) form is used: it cannot go negative through cancellation.
+
+    Args:
+        mean: member means, ensemble members along ``dim``.
+        var: member variances, same shape.
+        dim: the ensemble dimension.
+
+    Returns:
+        ``(mu_star, var_star)`` with ``dim`` reduced.
+    """
+    if mean.shape != var.shape:
+        raise ValueError(
+            f"mean and var must have the same shape, got {tuple(mean.shape)} and {tuple(var.shape)}"
+        )
+    mu_star = mean.mean(dim)
+    spread = (mean - mu_star.unsqueeze(dim)).pow(2).mean(dim)
+    return mu_star, var.mean(dim) + spread
+
+
+def gaussian_nll(
+    x: torch.Tensor, mean: torch.Tensor, var: torch.Tensor, min_var: float = 1e-6
+) -> torch.Tensor:
+    r"""Elementwise :math:`-\log \mathcal{N}(x \mid \mu, \sigma^2)`, not summed (used in eqs. 6 and 8).
+
+    .. math:: \tfrac12 \left(\log 2\pi\sigma^2 + (x - \mu)^2 / \sigma^2\right)
+
+    ``var`` is floored at ``min_var`` so that a collapsed variance gives a large but finite value.
+    """
+    if min_var <= 0:
+        raise ValueError(f"min_var must be > 0, got {min_var}")
+    var = var.clamp_min(min_var)
+    return 0.5 * (_LOG_2PI + var.log() + (x - mean).pow(2) / var)
+
+
+def penalty_surprise(
+    penalty: torch.Tensor, nll: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0
+) -> torch.Tensor:
+    r"""Penalty-based surprise :math:`r^{s_p}_t` (eq. 8).
+
+    .. math::
+        r^{s_p}_t = \begin{cases}
+            a_{\lambda'}(r^f_t)\,\left[-\log \mathcal{N}(r^f_t \mid \mu_*, \sigma^2_*) - r^f_t\right]
+                & \text{if } r^f_t < 0 \\
+            0 & \text{otherwise,}
+        \end{cases}
+
+    chosen so that :math:`r^f_t + r^{s_p}_t` is the convex combination of eq. 7:
+    :math:`a' \cdot \mathrm{nll} + (1 - a')\, r^f_t`.
+
+    Reading of :math:`a_{\lambda'}(r^f_t)`: the paper applies the impact acceptability sigmoid to the
+    penalty, and wants high penalties to be *less* acceptable (mostly penalty, little curiosity). Since
+    :math:`r^f_t \le 0`, we evaluate the acceptability of the penalty's *magnitude*:
+    ``a' = acceptability(-penalty, lam1, lam2)`` (~1 for small penalties, ~0 for large ones).
+
+    Args:
+        penalty: ``[...]`` impact penalty :math:`r^f_t` (<= 0).
+        nll: ``[...]`` :math:`-\log \mathcal{N}(r^f_t \mid \mu_*, \sigma^2_*)` under the target
+            penalty model, from :func:`gaussian_nll` and :func:`mixture_moments`.
+        lam1, lam2: :math:`\lambda'` (paper: :math:`\lambda'_1 = 2`, :math:`\lambda'_2 \in [1, 4]`).
+
+    Returns:
+        ``[...]`` penalty surprise; exactly 0 where ``penalty == 0``.
+    """
+    weight = acceptability(-penalty, lam1, lam2)
+    surprise = weight * (nll - penalty)
+    return torch.where(penalty < 0, surprise, torch.zeros_like(surprise))

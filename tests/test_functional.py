@@ -1,0 +1,129 @@
+"""The paper's gentleness equations against hand-computed numbers, plus property tests."""
+
+import math
+
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gentlerl.functional import (
+    acceptability,
+    gaussian_nll,
+    impact,
+    impact_penalty,
+    mixture_moments,
+    penalty_surprise,
+)
+
+finite = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False, width=32)
+
+
+def test_impact_sums_force_increases_over_channels_only():
+    force = torch.tensor([[1.0, 2.0, 0.0], [3.0, 0.0, 0.0]])
+    next_force = torch.tensor([[2.5, 1.0, 0.5], [0.0, 0.0, 0.0]])
+    # site 0: +1.5 (normal) + 0 (decrease ignored) + 0.5 = 2.0; site 1: only decreases → 0.
+    torch.testing.assert_close(impact(force, next_force), torch.tensor([2.0, 0.0]))
+
+
+def test_impact_rejects_mismatched_shapes():
+    with pytest.raises(ValueError, match="same shape"):
+        impact(torch.zeros(5, 3), torch.zeros(5, 2))
+    with pytest.raises(ValueError, match="n_sites, n_channels"):
+        impact(torch.zeros(3), torch.zeros(3))
+
+
+def test_acceptability_is_the_papers_sigmoid():
+    # a(m) = 1 / (1 + exp(l1 (m - l2))): at m = l2 it is 1/2, at m = 1 with l = [2, 2] it is 1/(1+e^-2).
+    x = torch.tensor([2.0, 1.0, 3.0])
+    expected = torch.tensor([0.5, 1 / (1 + math.exp(-2)), 1 / (1 + math.exp(2))])
+    torch.testing.assert_close(acceptability(x, 2.0, 2.0), expected)
+    with pytest.raises(ValueError, match="lam1"):
+        acceptability(x, -1.0, 2.0)
+
+
+def test_impact_penalty_matches_the_issue_numbers():
+    # 1 N at one fingertip → -(1 - sigmoid(2)) = -0.1192; 2 N → -(1 - 0.5) * 2 = -1.0.
+    one = impact_penalty(torch.tensor([1.0, 0.0, 0.0, 0.0, 0.0]))
+    two = impact_penalty(torch.tensor([0.0, 2.0, 0.0, 0.0, 0.0]))
+    assert one.item() == pytest.approx(-0.1192, abs=1e-4)
+    assert two.item() == pytest.approx(-1.0, abs=1e-6)
+    # Sites add up: both at once.
+    both = impact_penalty(torch.tensor([1.0, 2.0, 0.0, 0.0, 0.0]))
+    assert both.item() == pytest.approx(-1.1192, abs=1e-4)
+
+
+def test_mixture_moments_of_two_members():
+    # Members N(0, 1) and N(2, 3): mu* = 1, var* = mean(var) + mean((mu - mu*)^2) = 2 + 1 = 3.
+    mean = torch.tensor([[0.0], [2.0]])
+    var = torch.tensor([[1.0], [3.0]])
+    mu, v = mixture_moments(mean, var, dim=0)
+    torch.testing.assert_close(mu, torch.tensor([1.0]))
+    torch.testing.assert_close(v, torch.tensor([3.0]))
+    # The paper's form: mean(var + mu^2) - mu*^2 = (1 + 0 + 3 + 4) / 2 - 1 = 3.
+    torch.testing.assert_close(v, (var + mean**2).mean(0) - mu**2)
+
+
+def test_gaussian_nll_standard_normal():
+    # -log N(1 | 0, 1) = 0.5 log(2 pi) + 0.5 = 1.4189.
+    out = gaussian_nll(torch.tensor([0.0, 1.0]), torch.zeros(2), torch.ones(2))
+    torch.testing.assert_close(out, torch.tensor([0.5 * math.log(2 * math.pi), 1.4189385]))
+    # Variance 4 at x = mean: 0.5 log(2 pi 4) = 1.6121.
+    assert gaussian_nll(torch.tensor(3.0), torch.tensor(3.0), torch.tensor(4.0)).item() == (
+        pytest.approx(0.5 * math.log(8 * math.pi))
+    )
+
+
+def test_gaussian_nll_floors_collapsed_variance():
+    out = gaussian_nll(torch.tensor(1.0), torch.tensor(0.0), torch.tensor(0.0), min_var=1e-6)
+    assert torch.isfinite(out)
+    assert out.item() == pytest.approx(0.5 * (math.log(2 * math.pi * 1e-6) + 1e6), rel=1e-6)
+
+
+def test_penalty_surprise_hand_computed():
+    # r^f = -1 (a 2 N impact), nll = 0.5, l' = [2, 2]: a' = sigmoid(2 (2 - 1)) = 0.8808,
+    # r^sp = 0.8808 * (0.5 - (-1)) = 1.3212; r^f + r^sp = a' nll + (1 - a') r^f = 0.3212.
+    penalty = torch.tensor([-1.0, 0.0])
+    nll = torch.tensor([0.5, 7.0])
+    out = penalty_surprise(penalty, nll, 2.0, 2.0)
+    a = 1 / (1 + math.exp(-2))
+    torch.testing.assert_close(out, torch.tensor([a * 1.5, 0.0]))
+    assert (out[0] + penalty[0]).item() == pytest.approx(a * 0.5 + (1 - a) * -1.0, abs=1e-6)
+
+
+def test_penalty_surprise_higher_lam2_accepts_larger_penalties():
+    penalty = torch.tensor([-3.0])
+    nll = torch.tensor([1.0])
+    low = penalty_surprise(penalty, nll, 2.0, 1.0)
+    high = penalty_surprise(penalty, nll, 2.0, 4.0)
+    assert high.item() > low.item() > 0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(finite, min_size=6, max_size=6), st.lists(finite, min_size=6, max_size=6))
+def test_impact_is_non_negative_and_penalty_non_positive(f, g):
+    force = torch.tensor(f).view(2, 3)
+    next_force = torch.tensor(g).view(2, 3)
+    m = impact(force, next_force)
+    assert (m >= 0).all()
+    p = impact_penalty(m)
+    assert torch.isfinite(p) and p.item() <= 0
+
+
+@settings(max_examples=200, deadline=None)
+@given(finite, finite)
+def test_penalty_surprise_is_zero_without_penalty_and_finite(nll, lam2):
+    zero = penalty_surprise(torch.tensor(0.0), torch.tensor(nll), 2.0, abs(lam2))
+    assert zero.item() == 0.0
+    neg = penalty_surprise(torch.tensor(-abs(nll) - 1e-3), torch.tensor(nll), 2.0, abs(lam2))
+    assert torch.isfinite(neg)
+
+
+@settings(max_examples=200, deadline=None)
+@given(finite, finite, st.floats(min_value=0.0, max_value=1e4, width=32))
+def test_gaussian_nll_and_mixture_are_finite(x, mu, var):
+    assert torch.isfinite(gaussian_nll(torch.tensor(x), torch.tensor(mu), torch.tensor(var)))
+    mean = torch.tensor([[x], [mu]])
+    variance = torch.tensor([[var], [0.0]])
+    m, v = mixture_moments(mean, variance)
+    assert torch.isfinite(m).all() and torch.isfinite(v).all() and (v >= 0).all()
