@@ -29,3 +29,7 @@ ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
 
 # The dynamics model's three predicted feature groups (paper: one ensemble per group).
 DYNAMICS_FEATURES = (JOINT_POS, JOINT_VEL, TOUCH)
+
+# Written by the critics / D4PG loss.
+STATE_ACTION_VALUE_LOGITS = "state_action_value_logits"  # [..., K, num_atoms]
+PRIORITY = "td_error"  # [...] priority for the prioritised sampler

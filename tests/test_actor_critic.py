@@ -1,0 +1,101 @@
+"""Actor and fused multi-head critic: architecture, shapes, equivalence to K separate critics."""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torch import nn
+
+from gentlerl import keys
+from gentlerl.models import FusedCritic, make_actor, make_critic, make_exploration_policy
+
+
+def test_actor_architecture_and_range():
+    actor = make_actor(63, 20)
+    net = actor.module
+    # Linear(63,300) LayerNorm Tanh Linear(300,200) ELU Linear(200,20) Tanh
+    kinds = [type(m) for m in net]
+    assert kinds == [nn.Linear, nn.LayerNorm, nn.Tanh, nn.Linear, nn.ELU, nn.Linear, nn.Tanh]
+    assert (net[0].in_features, net[0].out_features, net[3].out_features) == (63, 300, 200)
+    td = actor(TensorDict({keys.OBSERVATION: 100 * torch.randn(32, 63)}, [32]))
+    assert td[keys.ACTION].shape == (32, 20)
+    assert td[keys.ACTION].abs().max() <= 1.0
+
+
+def test_exploration_noise_has_sigma_03_and_stays_in_bounds():
+    torch.manual_seed(0)
+    actor = make_actor(4, 3, hidden=(8,))
+    with torch.no_grad():  # a zero last layer makes the clean action exactly 0
+        actor.module[-2].weight.zero_()
+        actor.module[-2].bias.zero_()
+    policy = make_exploration_policy(actor, sigma=0.3)
+    noisy = policy(TensorDict({keys.OBSERVATION: torch.randn(20000, 4)}, [20000]))[keys.ACTION]
+    assert noisy.abs().max() <= 1.0
+    # N(0, 0.3^2) noise; clipping at +-1 (3.3 sigma) changes the std by < 0.1 %.
+    assert noisy.std().item() == pytest.approx(0.3, rel=0.02)
+    assert noisy.mean().item() == pytest.approx(0.0, abs=0.01)
+    with pytest.raises(ValueError, match="sigma"):
+        make_exploration_policy(actor, sigma=-1.0)
+
+
+def test_fused_critic_shapes_and_paper_defaults():
+    critic = make_critic(63, 20, num_heads=4)
+    td = TensorDict(
+        {keys.OBSERVATION: torch.randn(5, 7, 63), keys.ACTION: torch.rand(5, 7, 20)}, [5, 7]
+    )
+    logits = critic(td)[keys.STATE_ACTION_VALUE_LOGITS]
+    assert logits.shape == (5, 7, 4, 101)
+    fused = critic.module
+    assert [layer.weight.shape for layer in fused.layers] == [(4, 83, 400), (4, 400, 300)]
+    assert fused.head.weight.shape == (4, 300, 101)
+
+
+def _separate_critic(fused: FusedCritic, k: int) -> nn.Sequential:
+    """Head k of the fused critic copied into a plain nn.Sequential of the paper's layers."""
+    l0, l1, head, norm = fused.layers[0], fused.layers[1], fused.head, fused.norm
+    seq = nn.Sequential(
+        nn.Linear(l0.weight.shape[1], l0.weight.shape[2]),
+        nn.LayerNorm(l0.weight.shape[2]),
+        nn.Tanh(),
+        nn.Linear(l1.weight.shape[1], l1.weight.shape[2]),
+        nn.ELU(),
+        nn.Linear(head.weight.shape[1], head.weight.shape[2]),
+    )
+    with torch.no_grad():
+        for lin, src in ((seq[0], l0), (seq[3], l1), (seq[5], head)):
+            lin.weight.copy_(src.weight[k].T)
+            lin.bias.copy_(src.bias[k, 0])
+        seq[1].weight.copy_(norm.weight[k, 0] + 0.1 * k)  # non-trivial affine per head
+        seq[1].bias.copy_(norm.bias[k, 0] - 0.2 * k)
+        norm.weight[k, 0].copy_(seq[1].weight)
+        norm.bias[k, 0].copy_(seq[1].bias)
+    return seq
+
+
+def test_fused_critic_equals_k_separate_critics():
+    torch.manual_seed(0)
+    fused = FusedCritic(6, 2, num_heads=3, hidden=(16, 8), num_atoms=11)
+    separate = [_separate_critic(fused, k) for k in range(3)]
+    obs, act = torch.randn(10, 6), torch.randn(10, 2)
+    out = fused(obs, act)
+    for k, seq in enumerate(separate):
+        torch.testing.assert_close(out[:, k], seq(torch.cat([obs, act], -1)))
+
+
+def test_heads_are_independent_in_init_and_gradient():
+    torch.manual_seed(0)
+    fused = FusedCritic(6, 2, num_heads=3, hidden=(16, 8), num_atoms=11)
+    w = fused.layers[0].weight
+    assert not torch.allclose(w[0], w[1])
+    fused(torch.randn(4, 6), torch.randn(4, 2))[:, 1].sum().backward()
+    for p in (fused.layers[0].weight, fused.layers[1].weight, fused.head.weight, fused.norm.weight):
+        assert p.grad[1].abs().sum() > 0
+        assert p.grad[0].abs().sum() == 0 and p.grad[2].abs().sum() == 0
+
+
+@pytest.mark.parametrize(
+    "kwargs", [dict(num_heads=0), dict(hidden=()), dict(hidden=(16, -1)), dict(num_atoms=1)]
+)
+def test_bad_sizes_raise(kwargs):
+    args = dict(obs_dim=6, action_dim=2, num_heads=2) | kwargs
+    with pytest.raises(ValueError):
+        FusedCritic(**args)
