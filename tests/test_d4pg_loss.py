@@ -1,0 +1,168 @@
+"""MultiHeadD4PGLoss: targets, per-head losses, gradients, target updates, learning a bandit."""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.objectives import HardUpdate
+
+from gentlerl.models import make_actor, make_critic
+from gentlerl.objectives import MultiHeadD4PGLoss
+
+OBS, ACT = 3, 1
+
+
+def _loss(heads=2, v=(-10.0, 10.0), atoms=21, **kwargs):
+    torch.manual_seed(0)
+    keys = ["reward", "penalty", "extra"][:heads]
+    actor = make_actor(OBS, ACT, hidden=(32, 32))
+    critic = make_critic(OBS, ACT, num_heads=heads, hidden=(64, 64), num_atoms=atoms)
+    return MultiHeadD4PGLoss(actor, critic, reward_keys=keys, v_min=v[0], v_max=v[1], **kwargs)
+
+
+def _batch(n=8, reward=1.0, penalty=-2.0, terminated=True, action=None, steps=None):
+    td = TensorDict(
+        {
+            "observation": torch.ones(n, OBS),
+            "action": torch.zeros(n, ACT) if action is None else action,
+            "next": {
+                "observation": torch.ones(n, OBS),
+                "reward": torch.full((n, 1), reward),
+                "penalty": torch.full((n, 1), penalty),
+                "terminated": torch.full((n, 1), terminated),
+            },
+        },
+        [n],
+    )
+    if steps is not None:
+        td["steps_to_next_obs"] = torch.full((n,), steps)
+    return td
+
+
+def test_terminal_target_is_the_reward_of_each_head():
+    # Atoms every 1.0 on [-10, 10]: reward 1 -> all mass on atom 11, penalty -2 -> atom 8;
+    # a reward of 0.25 puts 0.75 on atom 10 and 0.25 on atom 11.
+    loss = _loss()
+    target = loss.target_distribution(_batch(reward=0.25, penalty=-2.0))
+    assert target.shape == (8, 2, 21)
+    torch.testing.assert_close(target[0, 0, 10:12], torch.tensor([0.75, 0.25]))
+    assert target[0, 1, 8].item() == pytest.approx(1.0)
+
+
+def test_bootstrap_uses_gamma_to_the_n():
+    # Non-terminal, n = 3 steps, gamma = 0.5: discount 0.125; the target mean is
+    # r + 0.125 * E[Z'] for each head (no clipping inside [-10, 10]).
+    loss = _loss(gamma=0.5)
+    td = _batch(terminated=False, steps=3)
+    target = loss.target_distribution(td)
+    support = torch.linspace(-10, 10, 21)
+    with torch.no_grad():
+        nxt = td["next"].select("observation").clone()
+        with loss.target_actor_network_params.to_module(loss.actor_network):
+            loss.actor_network(nxt)
+        with loss.target_value_network_params.to_module(loss.value_network):
+            z = loss.value_network(nxt)["state_action_value_logits"].softmax(-1)
+    expected = torch.tensor([1.0, -2.0]) + 0.125 * (z * support).sum(-1)
+    torch.testing.assert_close((target * support).sum(-1), expected, atol=1e-5, rtol=1e-5)
+
+
+def test_losses_priorities_and_head_names():
+    loss = _loss()
+    td = _batch()
+    out = loss(td)
+    assert {"loss_actor", "loss_value", "loss_value_reward", "loss_value_penalty"} <= set(
+        out.keys()
+    )
+    torch.testing.assert_close(
+        out["loss_value"], out["loss_value_reward"] + out["loss_value_penalty"]
+    )
+    assert td["td_error"].shape == (8,) and (td["td_error"] > 0).all()
+
+
+def test_actor_loss_does_not_train_the_critic_and_vice_versa():
+    loss = _loss()
+    out = loss(_batch())
+    out["loss_actor"].backward()
+    assert all(
+        p.grad is None or p.grad.abs().sum() == 0
+        for p in loss.value_network_params.values(True, True)
+    )
+    assert any(
+        p.grad is not None and p.grad.abs().sum() > 0
+        for p in loss.actor_network_params.values(True, True)
+    )
+    loss.zero_grad()
+    out = loss(_batch())
+    out["loss_value"].backward()
+    assert all(
+        p.grad is None or p.grad.abs().sum() == 0
+        for p in loss.actor_network_params.values(True, True)
+    )
+
+
+def test_priority_weights_give_torchrls_weighted_mean():
+    # TorchRL reduces with sum(w * l) / sum(w): zero-weight samples drop out of the loss.
+    loss = _loss()
+    td = _batch()
+    td["next", "reward"][4:] = 5.0
+    first_half = loss(td[:4].clone())["loss_value"]
+    td["priority_weight"] = torch.tensor([1.0] * 4 + [0.0] * 4)
+    torch.testing.assert_close(loss(td)["loss_value"], first_half)
+
+
+def test_head_count_mismatch_is_a_clear_error():
+    actor = make_actor(OBS, ACT, hidden=(8,))
+    critic = make_critic(OBS, ACT, num_heads=3, hidden=(8,), num_atoms=5)
+    loss = MultiHeadD4PGLoss(actor, critic, reward_keys=["reward", "penalty"])
+    with pytest.raises(ValueError, match="3 heads but reward_keys has 2"):
+        loss(_batch())
+    with pytest.raises(ValueError, match="reward_keys"):
+        MultiHeadD4PGLoss(actor, critic, reward_keys=[])
+    with pytest.raises(ValueError, match="gamma"):
+        MultiHeadD4PGLoss(actor, critic, reward_keys=["reward"], gamma=1.5)
+
+
+def test_hard_update_copies_online_into_target_after_the_interval():
+    loss = _loss()
+    updater = HardUpdate(loss, value_network_update_interval=3)
+    with torch.no_grad():
+        for p in loss.value_network_params.values(True, True):
+            p.add_(1.0)
+    online = loss.value_network_params.clone()
+    # TorchRL's HardUpdate counts `interval` steps, then copies on the next one.
+    for _ in range(3):
+        updater.step()
+    assert not torch.allclose(
+        loss.target_value_network_params["module", "head", "weight"],
+        online["module", "head", "weight"],
+    )
+    updater.step()
+    for key, value in online.items(True, True):
+        torch.testing.assert_close(loss.target_value_network_params[key], value)
+
+
+def test_critics_learn_per_head_values_and_actor_maximises_their_sum():
+    # A one-step bandit: head 0 pays -(a - 0.6)^2, head 1 pays -(a + 0.2)^2 (terminal).
+    # The sum -(a-0.6)^2 - (a+0.2)^2 peaks at a = 0.2, while each head alone peaks elsewhere.
+    loss = _loss(heads=2, v=(-2.0, 1.0), atoms=31, delay_actor=False)
+    opt_critic = torch.optim.Adam(loss.value_network_params.values(True, True), lr=3e-3)
+    opt_actor = torch.optim.Adam(loss.actor_network_params.values(True, True), lr=1e-3)
+    updater = HardUpdate(loss, value_network_update_interval=1)
+    gen = torch.Generator().manual_seed(0)
+    for _ in range(600):
+        a = torch.rand(64, ACT, generator=gen) * 2 - 1
+        td = _batch(64, action=a)
+        td["next", "reward"] = -((a - 0.6) ** 2)
+        td["next", "penalty"] = -((a + 0.2) ** 2)
+        out = loss(td)
+        opt_critic.zero_grad()
+        opt_actor.zero_grad()
+        (out["loss_value"] + out["loss_actor"]).backward()  # the losses touch disjoint params
+        opt_critic.step()
+        opt_actor.step()
+        updater.step()
+    action = loss.actor_network(_batch(1).select("observation"))["action"].item()
+    assert action == pytest.approx(0.2, abs=0.1)
+    # value_<key> is each head's E[Q_k(s, pi(s))]: at a = 0.2 both components pay -0.16.
+    out = loss(_batch(1))
+    assert out["value_reward"].item() == pytest.approx(-0.16, abs=0.08)
+    assert out["value_penalty"].item() == pytest.approx(-0.16, abs=0.08)
