@@ -33,3 +33,4 @@ DYNAMICS_FEATURES = (JOINT_POS, JOINT_VEL, TOUCH)
 # Written by the critics / D4PG loss.
 STATE_ACTION_VALUE_LOGITS = "state_action_value_logits"  # [..., K, num_atoms]
 PRIORITY = "td_error"  # [...] priority for the prioritised sampler
+NSTEP_TERMINATED = "nstep_terminated"  # terminated flag of an n-step window's last step

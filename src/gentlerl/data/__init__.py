@@ -1,0 +1,18 @@
+"""Replay buffers: prioritised n-step replay for the learner, uniform 1-step replay for models."""
+
+from gentlerl.data.prioritized import FlatPriorityTree, TorchPrioritizedSampler
+from gentlerl.data.replay import (
+    NStepTerminated,
+    make_beta_scheduler,
+    make_model_buffer,
+    make_replay_buffer,
+)
+
+__all__ = [
+    "FlatPriorityTree",
+    "TorchPrioritizedSampler",
+    "NStepTerminated",
+    "make_beta_scheduler",
+    "make_model_buffer",
+    "make_replay_buffer",
+]

@@ -1,0 +1,113 @@
+"""Replay for the D4PG learner: TorchRL prioritised replay of n-step transitions.
+
+``MultiStepTransform`` sums every reward component over ``n_steps`` at write time and maps
+``("next", obs)`` to the observation ``n`` steps ahead (``steps_to_next_obs`` holds the actual n,
+shorter at episode ends). It leaves the done flags of step t untouched, so the bootstrap could be
+taken from a terminal state; :class:`NStepTerminated` copies ``("next", "terminated")`` to
+``("next", "nstep_terminated")``, which ``MultiStepTransform`` *does* gather from the window's last
+step, and the loss reads that key (``loss.set_keys(terminated=keys.NSTEP_TERMINATED)``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from tensordict import TensorDictBase
+from torchrl.data import (
+    LazyTensorStorage,
+    RandomSampler,
+    TensorDictReplayBuffer,
+)
+from torchrl.data.replay_buffers.scheduler import LinearScheduler
+from torchrl.envs.transforms import Compose, MultiStepTransform, Transform
+
+from gentlerl import keys
+from gentlerl.data.prioritized import TorchPrioritizedSampler
+
+
+class NStepTerminated(Transform):
+    """Replay-buffer transform: on write, copy ``("next", "terminated")`` to ``("next", "nstep_terminated")``."""
+
+    def __init__(self) -> None:
+        super().__init__(
+            in_keys_inv=[("next", keys.TERMINATED)], out_keys_inv=[("next", keys.NSTEP_TERMINATED)]
+        )
+
+    def _inv_call(self, tensordict: TensorDictBase) -> TensorDictBase:
+        for src, dst in zip(self.in_keys_inv, self.out_keys_inv, strict=True):
+            tensordict.set(dst, tensordict.get(src).clone())
+        return tensordict
+
+
+def make_replay_buffer(
+    capacity: int,
+    batch_size: int,
+    *,
+    prioritized: bool = True,
+    alpha: float = 0.6,
+    beta: float = 0.4,
+    n_steps: int = 5,
+    gamma: float = 0.99,
+    reward_keys: Sequence[str] = (keys.REWARD,),
+    device: str = "cpu",
+) -> TensorDictReplayBuffer:
+    """The agent's replay buffer: n-step transitions, prioritised by the loss's ``td_error``.
+
+    Args:
+        capacity: transitions kept (paper: 1M).
+        batch_size: transitions per sample (paper: 256).
+        prioritized: TorchRL's ``PrioritizedSampler`` logic (:class:`TorchPrioritizedSampler`) (priorities ``|td_error|^alpha``, importance
+            weights with exponent ``beta``, see :func:`make_beta_scheduler`); uniform otherwise.
+        n_steps, gamma: n-step returns of every key in ``reward_keys`` (Acme D4PG: n = 5, 0.99).
+        device: storage device.
+
+    Write with ``rb.extend(batch)`` where ``batch`` is ``[T]`` or ``[B, T]`` time-contiguous
+    (a collector batch); the last ``n_steps`` of each write wait for the next one.
+    """
+    for name, value in (("capacity", capacity), ("batch_size", batch_size), ("n_steps", n_steps)):
+        if int(value) < 1:
+            raise ValueError(f"{name} must be >= 1, got {value}")
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"gamma must be in [0, 1], got {gamma}")
+    if prioritized and not (alpha >= 0 and beta >= 0):
+        raise ValueError(f"alpha and beta must be >= 0, got alpha={alpha}, beta={beta}")
+    sampler = (
+        TorchPrioritizedSampler(capacity, alpha=alpha, beta=beta)
+        if prioritized
+        else RandomSampler()
+    )
+    # Compose inverts in reverse order: NStepTerminated runs before MultiStepTransform on write.
+    transform = Compose(
+        MultiStepTransform(n_steps, gamma, reward_keys=list(reward_keys)), NStepTerminated()
+    )
+    return TensorDictReplayBuffer(
+        storage=LazyTensorStorage(capacity, device=device),
+        sampler=sampler,
+        priority_key=keys.PRIORITY,
+        transform=transform,
+        batch_size=batch_size,
+    )
+
+
+def make_model_buffer(
+    capacity: int, batch_size: int, device: str = "cpu"
+) -> TensorDictReplayBuffer:
+    """Uniform buffer of 1-step transitions for the dynamics / penalty / ICM models."""
+    for name, value in (("capacity", capacity), ("batch_size", batch_size)):
+        if int(value) < 1:
+            raise ValueError(f"{name} must be >= 1, got {value}")
+    return TensorDictReplayBuffer(
+        storage=LazyTensorStorage(capacity, device=device),
+        sampler=RandomSampler(),
+        batch_size=batch_size,
+    )
+
+
+def make_beta_scheduler(
+    rb: TensorDictReplayBuffer, final_beta: float = 1.0, num_steps: int = 100_000
+) -> LinearScheduler:
+    """Anneal the importance-sampling exponent beta linearly to ``final_beta`` over ``num_steps``
+    calls of ``scheduler.step()`` (Schaul et al. 2016)."""
+    if not isinstance(rb.sampler, TorchPrioritizedSampler):
+        raise ValueError("beta annealing needs a prioritised buffer (prioritized=True)")
+    return LinearScheduler(rb, param_name="beta", final_value=final_beta, num_steps=num_steps)

@@ -1,0 +1,121 @@
+"""Replay: n-step sums of several reward components, the window-end terminated flag, priorities."""
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.data import PrioritizedSampler
+
+from gentlerl import keys
+from gentlerl.data import make_beta_scheduler, make_model_buffer, make_replay_buffer
+
+
+def _trajectory(T=8, terminal_at=4):
+    """obs t = t; reward 1 every step; penalty -t; the episode terminates at step `terminal_at`."""
+    term = torch.zeros(T, 1, dtype=torch.bool)
+    term[terminal_at] = True
+    return TensorDict(
+        {
+            "observation": torch.arange(T).float().unsqueeze(-1),
+            "next": {
+                "observation": torch.arange(1, T + 1).float().unsqueeze(-1),
+                "reward": torch.ones(T, 1),
+                "penalty": -torch.arange(T).float().unsqueeze(-1),
+                "done": term.clone(),
+                "terminated": term.clone(),
+                "truncated": torch.zeros(T, 1, dtype=torch.bool),
+            },
+        },
+        [T],
+    )
+
+
+def test_n_step_sums_every_reward_key_and_flags_the_window_end():
+    rb = make_replay_buffer(
+        100, 4, prioritized=False, n_steps=3, gamma=0.5, reward_keys=["reward", "penalty"]
+    )
+    rb.extend(_trajectory())
+    data = rb[:]
+    # The last n_steps transitions wait for the next write: 8 - 3 = 5 stored.
+    assert len(rb) == 5
+    # t=0: 1 + .5 + .25 = 1.75; t=3: window cut by the terminal step 4 -> 1 + .5 = 1.5.
+    assert data["next", "reward"].squeeze(-1).tolist() == [1.75, 1.75, 1.75, 1.5, 1.0]
+    # penalty t=0: -(0 + .5*1 + .25*2) = -1.0; t=3: -(3 + .5*4) = -5.
+    assert data["next", "penalty"].squeeze(-1).tolist() == [-1.0, -2.75, -4.5, -5.0, -4.0]
+    assert data["steps_to_next_obs"].tolist() == [3, 3, 3, 2, 1]
+    assert data["next", "observation"].squeeze(-1).tolist() == [3.0, 4.0, 5.0, 5.0, 5.0]
+    # t=2..4 reach the terminal step within their window: no bootstrap for them.
+    assert data["next", keys.NSTEP_TERMINATED].squeeze(-1).tolist() == [
+        False,
+        False,
+        True,
+        True,
+        True,
+    ]
+
+
+def test_prioritised_sampling_follows_td_error():
+    torch.manual_seed(0)
+    rb = make_replay_buffer(100, 256, n_steps=1, alpha=1.0, beta=0.4)
+    assert isinstance(rb.sampler, PrioritizedSampler)
+    rb.extend(_trajectory(T=11, terminal_at=10))  # 10 stored
+    batch = rb.sample()
+    batch[keys.PRIORITY] = torch.where(batch["observation"].squeeze(-1) == 0, 100.0, 1e-3)
+    rb.update_tensordict_priority(batch)
+    counts = (rb.sample()["observation"].squeeze(-1) == 0).float().mean()
+    assert counts > 0.9  # priority 100 vs 9 x 0.001
+    assert "priority_weight" in batch.keys()
+
+
+def test_beta_scheduler_anneals_to_one():
+    rb = make_replay_buffer(10, 2, beta=0.4)
+    scheduler = make_beta_scheduler(rb, final_beta=1.0, num_steps=3)
+    for _ in range(3):
+        scheduler.step()
+    assert rb.sampler.beta == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="prioritised"):
+        make_beta_scheduler(make_replay_buffer(10, 2, prioritized=False))
+
+
+def test_model_buffer_keeps_one_step_transitions():
+    rb = make_model_buffer(100, 4)
+    rb.extend(_trajectory())
+    assert len(rb) == 8
+    assert rb[:]["next", "observation"].squeeze(-1).tolist() == list(range(1, 9))
+
+
+@pytest.mark.parametrize(
+    "kwargs", [dict(capacity=0), dict(batch_size=0), dict(n_steps=0), dict(gamma=2.0)]
+)
+def test_bad_sizes_raise(kwargs):
+    args = dict(capacity=10, batch_size=2) | kwargs
+    with pytest.raises(ValueError):
+        make_replay_buffer(**args)
+
+
+def test_flat_tree_sum_min_and_prefix_search():
+    from gentlerl.data import FlatPriorityTree
+
+    tree = FlatPriorityTree(5, "sum", torch.float64)
+    tree[torch.tensor([0, 1, 2, 3])] = torch.tensor([1.0, 0.0, 2.0, 3.0])
+    assert tree.query(0, 4) == 6.0 and tree.query(2, 4) == 5.0
+    # prefix sums 1, 1, 3, 6: mass 0.5 -> 0, 1.0 -> 2 (index 1 has no mass), 2.9 -> 2, 5.99 -> 3
+    assert tree.scan_lower_bound(torch.tensor([0.5, 1.0, 2.9, 5.99])).tolist() == [0, 2, 2, 3]
+    low = FlatPriorityTree(5, "min", torch.float64)
+    low[torch.tensor([0, 1, 2])] = torch.tensor([4.0, 0.5, 2.0])
+    assert low.query(0, 3) == 0.5 and low.query(2, 3) == 2.0
+
+
+def test_sampling_frequencies_match_priorities_to_the_alpha():
+    # alpha = 0.5: priorities 1, 4, 16 -> probabilities proportional to 1, 2, 4.
+    torch.manual_seed(0)
+    np.random.seed(0)
+    rb = make_replay_buffer(10, 70_000, n_steps=1, alpha=0.5)
+    rb.extend(_trajectory(T=4, terminal_at=3))  # 3 stored (t = 0, 1, 2)
+    td = rb[:]
+    td[keys.PRIORITY] = torch.tensor([1.0, 4.0, 16.0])
+    td["index"] = torch.arange(3)
+    rb.update_tensordict_priority(td)
+    obs = rb.sample()["observation"].squeeze(-1).long()
+    freq = torch.bincount(obs, minlength=3).float() / obs.numel()
+    torch.testing.assert_close(freq, torch.tensor([1.0, 2.0, 4.0]) / 7, atol=0.01, rtol=0)
