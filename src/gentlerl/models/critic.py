@@ -8,7 +8,6 @@ head keeps parameters of its own (no sharing, no gradient leaking between heads)
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from itertools import pairwise
 
@@ -18,38 +17,7 @@ from torch import nn
 
 from gentlerl import keys
 from gentlerl.models.actor import _check_sizes
-
-
-class HeadLinear(nn.Module):
-    """``K`` independent linear layers, weights ``[K, in, out]``, on inputs ``[K, B, in]``.
-
-    Each head is initialised like a separate ``nn.Linear(in, out)``: U(-1/sqrt(in), 1/sqrt(in)).
-    """
-
-    def __init__(self, num_heads: int, in_features: int, out_features: int) -> None:
-        super().__init__()
-        bound = 1.0 / math.sqrt(in_features)
-        self.weight = nn.Parameter(
-            torch.empty(num_heads, in_features, out_features).uniform_(-bound, bound)
-        )
-        self.bias = nn.Parameter(torch.empty(num_heads, 1, out_features).uniform_(-bound, bound))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return torch.baddbmm(self.bias, x, self.weight)
-
-
-class HeadLayerNorm(nn.Module):
-    """LayerNorm over the features of each head with per-head affine parameters ``[K, 1, F]``."""
-
-    def __init__(self, num_heads: int, features: int, eps: float = 1e-5) -> None:
-        super().__init__()
-        self.weight = nn.Parameter(torch.ones(num_heads, 1, features))
-        self.bias = nn.Parameter(torch.zeros(num_heads, 1, features))
-        self.eps = eps
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = nn.functional.layer_norm(x, x.shape[-1:], eps=self.eps)
-        return torch.addcmul(self.bias, x, self.weight)
+from gentlerl.models.layers import HeadLayerNorm, HeadLinear
 
 
 class FusedCritic(nn.Module):

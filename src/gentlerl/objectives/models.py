@@ -1,0 +1,120 @@
+"""Losses of the models behind the intrinsic rewards: dynamics / penalty ensembles and ICM.
+
+Each is a TorchRL ``LossModule`` so the training loop treats it like any loss, and each owns the
+network that its reward transform reads (the pattern of TorchRL's RND loss / transform pair).
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torch import nn
+from torchrl.objectives.common import LossModule
+
+from gentlerl import keys
+from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
+from gentlerl.models.icm import ICMModel
+
+
+class EnsembleModelLoss(LossModule):
+    """Gaussian NLL of a :class:`DynamicsModel` or :class:`PenaltyModel` ensemble.
+
+    Bootstrap (paper: "trained on different batches of transitions"): with ``per_member=True`` the
+    batch must be shaped ``[E, B]`` — member e is trained on ``batch[e]`` only. With ``False`` a
+    ``[B]`` batch is shared by all members (they still differ by their seeded initialisation).
+
+    The loss keeps a *target* copy of the model (``target_model_params``, normaliser statistics
+    included) for the surprise transforms; update it with TorchRL's ``HardUpdate`` (paper: every
+    5000 dynamics / 1000 penalty model updates). Each ``forward`` in training mode first merges
+    the batch into the model's running input / target statistics.
+
+    Returns ``loss_<name>``: the NLL averaged over members and samples.
+    """
+
+    model: DynamicsModel | PenaltyModel
+    model_params: TensorDictBase
+    target_model_params: TensorDictBase
+
+    def __init__(
+        self, model: DynamicsModel | PenaltyModel, *, name: str, per_member: bool = True
+    ) -> None:
+        super().__init__()
+        if not name.isidentifier():
+            raise ValueError(f"name must be an identifier (it becomes loss_<name>), got {name!r}")
+        self.name = name
+        self.per_member = per_member
+        self.convert_to_functional(model, "model", create_target_params=True)
+
+    @property
+    def ensemble_size(self) -> int:
+        return self.model.ensemble_size
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        if self.per_member and tensordict.batch_size[:1] != torch.Size([self.ensemble_size]):
+            raise ValueError(
+                f"per_member=True needs a batch shaped [ensemble_size={self.ensemble_size}, B], "
+                f"got {tuple(tensordict.batch_size)}"
+            )
+        with self.model_params.to_module(self.model, preserve_module_state=False):
+            if self.training:
+                self.model.update_normalizers(tensordict)
+            nll = self.model.nll(tensordict, per_member=self.per_member)
+        return TensorDict({f"loss_{self.name}": nll.mean()}, batch_size=[])
+
+    def predict_target(self, tensordict: TensorDictBase) -> object:
+        """The *target* model's ``predict`` (no gradient), as the surprise transforms use it."""
+        with (
+            torch.no_grad(),
+            self.target_model_params.to_module(self.model, preserve_module_state=False),
+        ):
+            return self.model.predict(tensordict)
+
+
+class ICMLoss(LossModule):
+    r"""ICM loss :math:`(1 - \beta) L_{inverse} + \beta L_{forward}` (Pathak et al. 2017, eq. 7), beta = 0.2.
+
+    :math:`L_{inverse}` is the MSE between predicted and taken actions (continuous actions),
+    :math:`L_{forward} = \frac12 \lVert \hat\phi(s_{t+1}) - \phi(s_{t+1}) \rVert^2` with the
+    encoder trained by the inverse loss only (``phi(s_{t+1})`` is detached in the forward loss, a
+    common guard against feature collapse).
+    """
+
+    model: ICMModel
+    model_params: TensorDictBase
+    target_model_params: TensorDictBase
+
+    def __init__(
+        self,
+        model: ICMModel,
+        *,
+        beta: float = 0.2,
+        obs_key: str = keys.OBSERVATION,
+        action_key: str = keys.ACTION,
+    ) -> None:
+        super().__init__()
+        if not 0.0 <= beta <= 1.0:
+            raise ValueError(f"beta must be in [0, 1], got {beta}")
+        self.beta, self.obs_key, self.action_key = beta, obs_key, action_key
+        self.convert_to_functional(model, "model", create_target_params=False)
+
+    def predict(
+        self, tensordict: TensorDictBase
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        obs = tensordict.get(self.obs_key)
+        with self.model_params.to_module(self.model, preserve_module_state=False):
+            return self.model(
+                obs, tensordict.get(self.action_key), tensordict.get(("next", self.obs_key))
+            )
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        predicted_action, predicted_next, next_phi = self.predict(tensordict)
+        inverse = nn.functional.mse_loss(predicted_action, tensordict.get(self.action_key))
+        forward = 0.5 * (predicted_next - next_phi.detach()).pow(2).sum(-1).mean()
+        return TensorDict(
+            {
+                "loss_icm": (1 - self.beta) * inverse + self.beta * forward,
+                "icm_inverse": inverse.detach(),
+                "icm_forward": forward.detach(),
+            },
+            batch_size=[],
+        )

@@ -1,0 +1,96 @@
+"""Shared mechanics of the gentleness transforms: rewards of a transition (s_t, a_t, s_{t+1}).
+
+Every transform here computes its outputs from a step's root entries (``s_t``, ``a_t``) and its
+``"next"`` entries (``s_{t+1}``) and writes them under ``"next"``. The same code serves
+
+- an env (``TransformedEnv`` / ``env.append_transform``): :meth:`_step` sees both halves;
+- a collector batch, a ``Compose`` or a replay buffer sample: :meth:`forward` reads
+  ``tensordict`` and ``tensordict["next"]``.
+
+Outputs are registered in the reward spec (TorchRL's convention for intrinsic rewards, as in
+``RNDTransform``), except per-site diagnostics such as ``impact`` which go in the observation spec
+and are zero after a reset.
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torch import nn
+from torchrl.data import Composite, Unbounded
+from torchrl.envs.transforms import Transform
+
+
+class TransitionTransform(Transform):
+    """Base class: subclasses implement :meth:`compute` ``(td, next_td) -> {out_key: tensor}``.
+
+    ``scalar_out_keys`` ([1]-shaped rewards) go to the reward spec; ``observation_out_shapes``
+    (key -> trailing shape) go to the observation spec and get :meth:`reset_outputs` on reset.
+    """
+
+    scalar_out_keys: tuple[str, ...] = ()
+
+    def observation_out_shapes(self, observation_spec: Composite) -> dict[str, tuple[int, ...]]:
+        return {}
+
+    def compute(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> dict[str, torch.Tensor]:
+        raise NotImplementedError
+
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
+        next_tensordict.update(self.compute(tensordict, next_tensordict))
+        return next_tensordict
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        next_tensordict = tensordict.get("next")
+        next_tensordict.update(self.compute(tensordict, next_tensordict))
+        return tensordict
+
+    def reset_outputs(self, tensordict_reset: TensorDictBase) -> dict[str, torch.Tensor]:
+        """Values of the observation-spec outputs right after a reset (none by default)."""
+        return {}
+
+    def _reset(
+        self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
+    ) -> TensorDictBase:
+        tensordict_reset.update(self.reset_outputs(tensordict_reset))
+        return tensordict_reset
+
+    def transform_observation_spec(self, observation_spec: Composite) -> Composite:
+        shapes = self.observation_out_shapes(observation_spec)
+        for key, shape in shapes.items():
+            observation_spec[key] = Unbounded(
+                shape=(*observation_spec.shape, *shape),
+                device=observation_spec.device,
+                dtype=torch.float32,
+            )
+        return observation_spec
+
+    def transform_reward_spec(self, reward_spec: Composite) -> Composite:
+        for key in self.scalar_out_keys:
+            reward_spec[key] = Unbounded(
+                shape=(*reward_spec.shape, 1), device=reward_spec.device, dtype=torch.float32
+            )
+        return reward_spec
+
+
+class ModelRewardTransform(TransitionTransform):
+    """A reward computed from a model that a ``LossModule`` owns and trains (RND-style pair).
+
+    The reward is multiplied by ``scale`` and by the :attr:`active` buffer, which stays ``False``
+    (reward 0) until the training loop switches it on after the reward delay.
+    """
+
+    def __init__(self, loss: nn.Module, out_key: str, scale: float, in_keys: list) -> None:
+        if not scale >= 0:
+            raise ValueError(f"scale must be >= 0, got {scale}")
+        super().__init__(in_keys=in_keys, out_keys=[out_key])
+        self.scalar_out_keys = (out_key,)
+        # A plain attribute, not a submodule: the loss owns (and checkpoints) the model.
+        self.__dict__["loss"] = loss
+        self.scale = float(scale)
+        self.register_buffer("active", torch.tensor(False))
+
+    def _gate(self, reward: torch.Tensor) -> torch.Tensor:
+        return reward * (self.scale * self.active.to(reward.dtype))

@@ -1,0 +1,70 @@
+"""``ImpactPenalty``: impact per sensor site (eq. 1) and the impact penalty r^f (eq. 4)."""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.data import Composite
+
+from gentlerl import keys
+from gentlerl.functional import impact, impact_penalty
+from gentlerl.transforms.base import TransitionTransform
+
+
+class ImpactPenalty(TransitionTransform):
+    r"""Writes ``impact`` :math:`m^i_t = \sum_c \max(0, f^{i,c}_{t+1} - f^{i,c}_t)` ``[n_sites]`` and
+    ``penalty`` :math:`r^f_t = -\sum_i (1 - a_\lambda(m^i_t))\, m^i_t` ``[1]`` under ``"next"``.
+
+    Works with any force key shaped ``[..., n_sites, n_channels]`` (the hand env's ``touch``
+    ``[5, 3]``). After a reset the previous force is the reset observation, so the first step has
+    no spurious impact.
+
+    Args:
+        lam: :math:`\lambda = [\lambda_1, \lambda_2]` of the acceptability sigmoid (paper: [2, 2]).
+        in_keys: ``[force_key]``; out_keys: ``[impact_key, penalty_key]``.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> td = TensorDict({"touch": torch.zeros(5, 3),
+        ...                  "next": {"touch": torch.tensor([[1.0, 0, 0]] + [[0.0] * 3] * 4)}})
+        >>> out = ImpactPenalty()(td)
+        >>> round(out["next", "penalty"].item(), 4)
+        -0.1192
+    """
+
+    scalar_out_keys = (keys.PENALTY,)
+
+    def __init__(
+        self,
+        lam: tuple[float, float] = (2.0, 2.0),
+        *,
+        in_keys: list[str] | None = None,
+        out_keys: list[str] | None = None,
+    ) -> None:
+        in_keys = in_keys or [keys.TOUCH]
+        out_keys = out_keys or [keys.IMPACT, keys.PENALTY]
+        if len(in_keys) != 1 or len(out_keys) != 2:
+            raise ValueError(
+                f"ImpactPenalty takes one force key and writes [impact, penalty]; got in_keys="
+                f"{in_keys}, out_keys={out_keys}"
+            )
+        if lam[0] < 0:
+            raise ValueError(f"lam[0] (sigmoid steepness) must be >= 0, got {lam}")
+        super().__init__(in_keys=in_keys, out_keys=out_keys)
+        self.scalar_out_keys = (out_keys[1],)
+        self.lam = (float(lam[0]), float(lam[1]))
+
+    def observation_out_shapes(self, observation_spec: Composite) -> dict[str, tuple[int, ...]]:
+        force_shape = observation_spec[self.in_keys[0]].shape[len(observation_spec.shape) :]
+        return {self.out_keys[0]: tuple(force_shape[:-1])}
+
+    def reset_outputs(self, tensordict_reset: TensorDictBase) -> dict[str, torch.Tensor]:
+        force = tensordict_reset.get(self.in_keys[0])
+        return {self.out_keys[0]: force.new_zeros(force.shape[:-1])}
+
+    def compute(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> dict[str, torch.Tensor]:
+        m = impact(tensordict.get(self.in_keys[0]), next_tensordict.get(self.in_keys[0]))
+        penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
+        return {self.out_keys[0]: m, self.out_keys[1]: penalty}

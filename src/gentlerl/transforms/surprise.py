@@ -1,0 +1,100 @@
+"""Surprise rewards under a *target* ensemble: dynamics surprise (eq. 6), penalty surprise (eq. 8).
+
+Each transform reads the target copy of the model owned by its
+:class:`~gentlerl.objectives.EnsembleModelLoss` (the RND-style transform/loss pair): the loss trains
+the model, the transform turns its predictions into a reward. Rewards are 0 until
+:attr:`active` is switched on (the paper's 20,000-step reward delay; see
+:class:`~gentlerl.transforms.RewardStack`).
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+
+from gentlerl import keys
+from gentlerl.functional import gaussian_nll, mixture_moments, penalty_surprise
+from gentlerl.objectives.models import EnsembleModelLoss
+from gentlerl.transforms.base import ModelRewardTransform
+
+
+class DynamicsSurprise(ModelRewardTransform):
+    r"""Writes ``dynamics_surprise`` :math:`r^s_t = -\sum_d \log \mathcal{N}(s_{t+1,d} \mid \mu_*, \sigma^2_*)` ``[1]``.
+
+    :math:`\mu_*, \sigma^2_*` are the moments of the target ensembles' Gaussian mixture for
+    :math:`(s_t, a_t)`, summed over every dimension of every feature group of the
+    :class:`~gentlerl.models.DynamicsModel` (paper: joint positions, velocities and touch).
+
+    Args:
+        loss: the dynamics model's loss (holds the model and its target copy).
+        scale: multiplies the reward (1 = the paper's equation).
+    """
+
+    def __init__(
+        self,
+        loss: EnsembleModelLoss,
+        *,
+        scale: float = 1.0,
+        out_key: str = keys.DYNAMICS_SURPRISE,
+    ) -> None:
+        features = list(loss.model.feature_shapes)
+        super().__init__(
+            loss, out_key, scale, [loss.model.obs_key, loss.model.action_key, *features]
+        )
+
+    def compute(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> dict[str, torch.Tensor]:
+        predictions = self.loss.predict_target(tensordict)
+        total = 0.0
+        for key, (mean, var) in predictions.items():
+            mu, sigma2 = mixture_moments(mean, var, dim=0)
+            target = next_tensordict.get(key).flatten(-len(self.loss.model.feature_shapes[key]))
+            total = total + gaussian_nll(target, mu, sigma2).sum(-1, keepdim=True)
+        return {self.out_keys[0]: self._gate(total)}
+
+
+class PenaltySurprise(ModelRewardTransform):
+    r"""Writes ``penalty_surprise`` :math:`r^{s_p}_t` ``[1]`` (eq. 8) under the target penalty ensemble.
+
+    .. math::
+        r^{s_p}_t = a_{\lambda'}(|r^f_t|)\left[-\log \mathcal{N}(r^f_t \mid \mu_*, \sigma^2_*) - r^f_t\right]
+        \text{ if } r^f_t < 0, \text{ else } 0.
+
+    Reads ``("next", "penalty")``: put :class:`~gentlerl.transforms.ImpactPenalty` before it.
+
+    Args:
+        loss: the penalty model's loss (holds the model and its target copy).
+        lam_prime: :math:`\lambda' = [\lambda'_1, \lambda'_2]` (paper: lambda'_1 = 2, lambda'_2 in 1..4).
+        scale: multiplies the reward (1 = the paper's equation).
+    """
+
+    def __init__(
+        self,
+        loss: EnsembleModelLoss,
+        *,
+        lam_prime: tuple[float, float] = (2.0, 2.0),
+        scale: float = 1.0,
+        penalty_key: str = keys.PENALTY,
+        out_key: str = keys.PENALTY_SURPRISE,
+    ) -> None:
+        if lam_prime[0] < 0:
+            raise ValueError(f"lam_prime[0] (sigmoid steepness) must be >= 0, got {lam_prime}")
+        super().__init__(
+            loss, out_key, scale, [loss.model.obs_key, loss.model.action_key, penalty_key]
+        )
+        self.penalty_key = penalty_key
+        self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
+
+    def compute(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> dict[str, torch.Tensor]:
+        penalty = next_tensordict.get(self.penalty_key)
+        if penalty is None:
+            raise KeyError(
+                f"PenaltySurprise needs ('next', {self.penalty_key!r}): append ImpactPenalty first"
+            )
+        mean, var = self.loss.predict_target(tensordict)
+        mu, sigma2 = mixture_moments(mean, var, dim=0)
+        nll = gaussian_nll(penalty, mu, sigma2)
+        return {self.out_keys[0]: self._gate(penalty_surprise(penalty, nll, *self.lam_prime))}

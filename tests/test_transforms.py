@@ -1,0 +1,198 @@
+"""Gentleness transforms: hand-computed rewards and the TorchRL transform checklist."""
+
+import math
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.envs import Compose, ParallelEnv, SerialEnv, TransformedEnv
+from torchrl.envs.utils import check_env_specs
+
+from gentlerl import keys
+from gentlerl.functional import gaussian_nll, mixture_moments
+from gentlerl.transforms import (
+    VARIANTS,
+    DynamicsSurprise,
+    ImpactPenalty,
+    PenaltySurprise,
+    make_reward_transforms,
+)
+from tests.toy_env import ToyHandEnv
+
+
+def _press_batch():
+    """Two transitions: 1 N at fingertip 0 (normal channel), then 2 N more at fingertip 1."""
+    touch = torch.zeros(3, 5, 3)
+    touch[1, 0, 0] = 1.0
+    touch[2, 0, 0] = 1.0
+    touch[2, 1, 0] = 2.0
+    return TensorDict({keys.TOUCH: touch[:2], "next": {keys.TOUCH: touch[1:]}}, [2])
+
+
+def test_impact_penalty_hand_computed():
+    out = ImpactPenalty()(_press_batch())
+    torch.testing.assert_close(
+        out["next", keys.IMPACT][:, :2], torch.tensor([[1.0, 0.0], [0.0, 2.0]])
+    )
+    penalty = out["next", keys.PENALTY].squeeze(-1)
+    assert penalty[0].item() == pytest.approx(-0.1192, abs=1e-4)
+    assert penalty[1].item() == pytest.approx(-1.0, abs=1e-6)
+
+
+def test_impact_penalty_custom_keys_and_bad_args():
+    td = TensorDict({"force": torch.zeros(2, 3), "next": {"force": torch.ones(2, 3)}})
+    out = ImpactPenalty((2.0, 2.0), in_keys=["force"], out_keys=["m", "rf"])(td)
+    assert out["next", "m"].shape == (2,) and out["next", "m"].tolist() == [3.0, 3.0]
+    with pytest.raises(ValueError, match="one force key"):
+        ImpactPenalty(in_keys=["a", "b"])
+    with pytest.raises(ValueError, match="lam"):
+        ImpactPenalty((-1.0, 2.0))
+
+
+def _pressing_rollout(env, steps=12):
+    # Joint 0 moves +0.1 per step: it passes the wall at 0.5 after 5 steps, then presses.
+    action = torch.zeros(20)
+    action[0] = 1.0
+    return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action))
+
+
+def test_impact_penalty_on_env_specs_reset_and_values():
+    env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
+    check_env_specs(env)
+    assert keys.PENALTY in env.reward_keys
+    reset = env.reset()
+    assert reset[keys.IMPACT].abs().sum() == 0  # no spurious impact at reset
+    rollout = _pressing_rollout(env)
+    # From step 6 on, the force rises by 0.1 * 20 = 2 N (+ 0.2 N tangential) per step.
+    impacts = rollout["next", keys.IMPACT][:, 0]
+    assert impacts[:5].abs().max() < 1e-5
+    torch.testing.assert_close(impacts[6:], torch.full((6,), 2.2), atol=1e-4, rtol=0)
+    a = 1 / (1 + math.exp(2 * (2.2 - 2)))
+    expected = -(1 - a) * 2.2
+    torch.testing.assert_close(
+        rollout["next", keys.PENALTY][6:, 0], torch.full((6,), expected), atol=1e-4, rtol=0
+    )
+
+
+def test_transform_gives_the_same_rewards_on_env_batch_and_replay_buffer():
+    env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
+    on_env = _pressing_rollout(env)
+    raw = _pressing_rollout(ToyHandEnv())
+    on_batch = Compose(ImpactPenalty())(raw.clone())
+    torch.testing.assert_close(on_batch["next", keys.PENALTY], on_env["next", keys.PENALTY])
+    rb = TensorDictReplayBuffer(
+        storage=LazyTensorStorage(100), transform=ImpactPenalty(), batch_size=4
+    )
+    rb.extend(raw)
+    sample = rb[:]
+    torch.testing.assert_close(sample["next", keys.PENALTY], on_env["next", keys.PENALTY])
+
+
+def test_impact_penalty_on_parallel_env():
+    env = TransformedEnv(ParallelEnv(2, ToyHandEnv, mp_start_method="fork"), ImpactPenalty())
+    try:
+        check_env_specs(env)
+        rollout = env.rollout(8, policy=lambda td: td.set(keys.ACTION, torch.ones(2, 20)))
+        assert rollout["next", keys.PENALTY].shape == (2, 8, 1)
+        assert (rollout["next", keys.PENALTY][:, 6:] < 0).all()
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_every_variant_builds_and_specs_hold(variant):
+    stack = make_reward_transforms(variant, reward_delay=0, hidden=16, ensemble_size=3)
+    assert stack.reward_keys == list(VARIANTS[variant])
+    expected_models = {
+        "dynamics": keys.DYNAMICS_SURPRISE in stack.reward_keys,
+        "penalty": keys.PENALTY_SURPRISE in stack.reward_keys,
+        "icm": keys.ICM_REWARD in stack.reward_keys,
+    }
+    assert set(stack.model_losses) == {k for k, used in expected_models.items() if used}
+    env = TransformedEnv(SerialEnv(1, ToyHandEnv), stack.transform.clone())
+    check_env_specs(env)
+    rollout = env.rollout(4)
+    for key in stack.reward_keys:
+        assert rollout["next", key].shape == (1, 4, 1)
+
+
+def test_unknown_variant_and_bad_periods():
+    with pytest.raises(ValueError, match=r"unknown variant 'r\+x'"):
+        make_reward_transforms("r+x")
+    with pytest.raises(ValueError, match="penalty_target_period"):
+        make_reward_transforms("r+rf+rsp", penalty_target_period=0)
+
+
+def test_dynamics_surprise_is_the_mixture_nll_and_waits_for_activation():
+    stack = make_reward_transforms("rs", reward_delay=10, hidden=16, ensemble_size=3)
+    surprise = stack.transform[1]
+    assert isinstance(surprise, DynamicsSurprise)
+    batch = _pressing_rollout(ToyHandEnv())
+    assert stack.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE].abs().sum() == 0
+    stack.step(10)  # reward delay reached
+    out = stack.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE]
+    # By hand: mixture moments of the target ensembles, NLL summed over the 63 dims.
+    preds = stack.model_losses["dynamics"].predict_target(batch)
+    expected = 0.0
+    for key, (mean, var) in preds.items():
+        mu, s2 = mixture_moments(mean, var)
+        expected = expected + gaussian_nll(batch["next", key].flatten(1), mu, s2).sum(
+            -1, keepdim=True
+        )
+    torch.testing.assert_close(out, expected)
+
+
+def test_penalty_surprise_zero_without_impact_and_formula_with_it():
+    stack = make_reward_transforms(
+        "r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3, lam_prime=(2.0, 3.0)
+    )
+    stack.step(0)
+    batch = _pressing_rollout(ToyHandEnv())
+    out = stack.transform(batch)
+    penalty = out["next", keys.PENALTY]
+    rsp = out["next", keys.PENALTY_SURPRISE]
+    assert (rsp[penalty == 0] == 0).all()
+    hit = penalty < 0
+    assert hit[6:].all()
+    mean, var = stack.model_losses["penalty"].predict_target(batch)
+    mu, s2 = mixture_moments(mean, var)
+    nll = gaussian_nll(penalty, mu, s2)
+    a = torch.sigmoid(2.0 * (3.0 + penalty))  # acceptability of |r^f| with lambda' = [2, 3]
+    torch.testing.assert_close(rsp[hit], (a * (nll - penalty))[hit])
+    assert isinstance(stack.transform[1], PenaltySurprise)
+
+
+def test_step_copies_targets_at_their_periods():
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=5, penalty_target_period=3, hidden=16)
+    loss = stack.model_losses["penalty"]
+    with torch.no_grad():
+        loss.model_params["ensemble", "head", "bias"].add_(1.0)
+    target = loss.target_model_params["ensemble", "head", "bias"]
+    stack.step(1)
+    stack.step(2)
+    assert not torch.allclose(target, loss.model_params["ensemble", "head", "bias"])
+    assert not stack.intrinsic_on
+    stack.step(3)  # the 3rd update copies
+    torch.testing.assert_close(target, loss.model_params["ensemble", "head", "bias"].data)
+    with torch.no_grad():
+        loss.model_params["ensemble", "head", "bias"].add_(1.0)
+    stack.step(4)
+    stack.step(5)
+    assert not torch.allclose(target, loss.model_params["ensemble", "head", "bias"])
+    assert stack.intrinsic_on  # reward_delay = 5 reached
+    stack.step(6)  # the 6th update copies again
+    torch.testing.assert_close(target, loss.model_params["ensemble", "head", "bias"].data)
+
+
+def test_state_dict_round_trip():
+    a = make_reward_transforms("r+rf+rs", reward_delay=0, hidden=16, seed=1)
+    b = make_reward_transforms("r+rf+rs", reward_delay=0, hidden=16, seed=2)
+    a.step(0)
+    b.load_state_dict(a.state_dict())
+    assert b.intrinsic_on
+    batch = _pressing_rollout(ToyHandEnv())
+    torch.testing.assert_close(
+        a.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
+        b.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
+    )
