@@ -125,7 +125,7 @@ def test_dynamics_nll_on_held_out_transitions_drops_after_training():
         out["loss_dynamics"].backward()
         opt.step()
     after = held_out_nll()
-    # Summed over 63 dims: from ~90 nats for an untrained ensemble to well below 0.
+    # Summed over 63 dims: ~76 nats untrained, ~1 after 300 updates (measured); demand a 50-nat drop.
     print(f"held-out dynamics NLL before {before:.1f} after {after:.1f}")
     assert after < before - 50, (before, after)
 
