@@ -1,0 +1,16 @@
+"""Training: config, the shared loop, checkpoints, logging, evaluation."""
+
+from gentlerl.training.checkpoint import load_checkpoint, save_checkpoint
+from gentlerl.training.config import SCALES, TrainConfig, make_config, validate
+from gentlerl.training.loop import Trainer, train
+
+__all__ = [
+    "SCALES",
+    "TrainConfig",
+    "Trainer",
+    "load_checkpoint",
+    "make_config",
+    "save_checkpoint",
+    "train",
+    "validate",
+]

@@ -1,0 +1,154 @@
+"""Wiring helpers (TorchRL sota-implementations style): env, collector, learner, buffers."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+
+import torch
+from torchrl.collectors import Collector, MultiAsyncCollector
+from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.objectives import HardUpdate
+
+from gentlerl import keys
+from gentlerl.data import make_beta_scheduler, make_model_buffer, make_replay_buffer
+from gentlerl.models import make_actor, make_critic, make_exploration_policy
+from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.training.config import TrainConfig
+from gentlerl.transforms import ImpactPenalty, RewardStack, make_reward_transforms
+
+EnvFactory = Callable[..., EnvBase]
+
+#: Keys the agent's n-step buffer keeps (plus the reward components under "next").
+AGENT_KEYS = (
+    keys.OBSERVATION,
+    keys.ACTION,
+    ("next", keys.OBSERVATION),
+    ("next", keys.DONE),
+    ("next", keys.TERMINATED),
+    ("next", keys.TRUNCATED),
+)
+
+
+def default_env_factory(cfg: TrainConfig) -> EnvFactory:
+    """``gentlerl.envs.make_env`` for ``cfg.task`` with ``cfg.env_kwargs``."""
+    from gentlerl.envs import make_env
+
+    return partial(make_env, cfg.task, **cfg.env_kwargs)
+
+
+def check_reward_keys(env: EnvBase, stack: RewardStack) -> None:
+    """One clear error if a reward component of the variant is not produced by env + transforms."""
+    transformed = TransformedEnv(env, stack.transform.clone())
+    produced = set(transformed.full_reward_spec.keys(True, True)) | set(
+        transformed.full_observation_spec.keys(True, True)
+    )
+    missing = [k for k in stack.reward_keys if k not in produced]
+    if missing:
+        raise ValueError(
+            f"reward key(s) {missing} of the variant are produced neither by the env nor by the "
+            f"reward transforms (produced: {sorted(map(str, produced))})"
+        )
+
+
+def make_reward_stack(cfg: TrainConfig, obs_dim: int, action_dim: int) -> RewardStack:
+    return make_reward_transforms(
+        cfg.variant,
+        obs_dim=obs_dim,
+        action_dim=action_dim,
+        lam=cfg.lam,
+        lam_prime=cfg.lam_prime,
+        reward_delay=cfg.reward_delay,
+        dynamics_target_period=cfg.dynamics_target_period,
+        penalty_target_period=cfg.penalty_target_period,
+        ensemble_size=cfg.ensemble_size,
+        hidden=cfg.model_hidden,
+        surprise_scale=cfg.surprise_scale,
+        icm_eta=cfg.icm_eta,
+        seed=cfg.seed,
+    )
+
+
+@dataclass
+class Learner:
+    """The D4PG actor-critic, its optimisers and target updater."""
+
+    loss: MultiHeadD4PGLoss
+    actor_optim: torch.optim.Optimizer
+    critic_optim: torch.optim.Optimizer
+    target_updater: HardUpdate
+
+    @property
+    def actor(self) -> torch.nn.Module:
+        return self.loss.actor_network
+
+
+def make_learner(cfg: TrainConfig, obs_dim: int, action_dim: int) -> Learner:
+    actor = make_actor(obs_dim, action_dim, cfg.actor_hidden)
+    critic = make_critic(
+        obs_dim, action_dim, len(cfg.reward_keys), cfg.critic_hidden, cfg.num_atoms
+    )
+    loss = MultiHeadD4PGLoss(
+        actor,
+        critic,
+        reward_keys=cfg.reward_keys,
+        v_min=cfg.v_min,
+        v_max=cfg.v_max,
+        gamma=cfg.gamma,
+    )
+    loss.set_keys(terminated=keys.NSTEP_TERMINATED)
+    return Learner(
+        loss=loss,
+        actor_optim=torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr_actor),
+        critic_optim=torch.optim.Adam(
+            loss.value_network_params.values(True, True), lr=cfg.lr_critic
+        ),
+        # TorchRL's HardUpdate copies on the (interval + 1)-th step (Acme: every 100 updates).
+        target_updater=HardUpdate(loss, value_network_update_interval=cfg.target_update_period - 1),
+    )
+
+
+def make_buffers(cfg: TrainConfig, total_updates: int) -> tuple:
+    """The agent's prioritised n-step buffer, its beta schedule, and the models' 1-step buffer."""
+    rb = make_replay_buffer(
+        cfg.buffer_size,
+        cfg.batch_size,
+        prioritized=cfg.prioritized,
+        alpha=cfg.alpha,
+        beta=cfg.beta,
+        n_steps=cfg.n_steps,
+        gamma=cfg.gamma,
+        reward_keys=cfg.reward_keys,
+    )
+    beta_schedule = make_beta_scheduler(rb, 1.0, max(total_updates, 1)) if cfg.prioritized else None
+    model_rb = make_model_buffer(cfg.model_buffer_size, cfg.model_batch_size)
+    return rb, beta_schedule, model_rb
+
+
+def make_collector(
+    cfg: TrainConfig,
+    env_factory: EnvFactory,
+    policy: torch.nn.Module,
+    frames_left: int,
+    random_left: int,
+) -> Collector | MultiAsyncCollector:
+    """TorchRL ``Collector`` (one process) or ``MultiAsyncCollector`` (``num_workers`` processes)."""
+    common = dict(
+        frames_per_batch=cfg.frames_per_batch,
+        total_frames=frames_left,
+        init_random_frames=random_left,
+    )
+    if cfg.collector == "single":
+        return Collector(env_factory, policy, **common)
+    return MultiAsyncCollector([env_factory] * cfg.num_workers, policy, **common)
+
+
+def make_exploration(learner: Learner, cfg: TrainConfig, action_dim: int) -> torch.nn.Module:
+    return make_exploration_policy(learner.actor, cfg.sigma, action_dim=action_dim)
+
+
+def make_eval_env(env_factory: EnvFactory, seed: int) -> EnvBase:
+    env = TransformedEnv(env_factory(), ImpactPenalty())
+    env.set_seed(seed)
+    return env

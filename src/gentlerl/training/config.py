@@ -1,0 +1,173 @@
+"""One dataclass for every hyper-parameter of a run, two scales, and up-front validation."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from gentlerl.transforms.stack import VARIANTS
+
+TASK_NAMES = ("explore", "touch", "fragile")
+COLLECTORS = ("single", "multi")
+WANDB_MODES = ("offline", "online", "disabled")
+
+
+@dataclass
+class TrainConfig:
+    """A training run. Defaults are the ``cpu`` scale; :data:`SCALES` lists the presets.
+
+    Paper values (``scale="paper"``): batch 256, buffer 1M, lr 1e-4, 500k steps, reward delay
+    20k, dynamics / penalty target periods 5k / 1k, actor 300-200, critics 400-300, 101 atoms on
+    [-100, 100], n-step 5, gamma 0.99, exploration sigma 0.3, ensembles of 5 x (3 x 128).
+    """
+
+    task: str = "touch"
+    variant: str = "r+rf+rsp"
+    seed: int = 0
+    scale: str = "cpu"
+    # Collection.
+    total_frames: int = 60_000
+    frames_per_batch: int = 200
+    init_random_frames: int = 2_000
+    collector: str = "single"
+    num_workers: int = 2
+    sigma: float = 0.3
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    # Learner.
+    batch_size: int = 128
+    buffer_size: int = 200_000
+    utd_ratio: float = 0.25
+    lr_actor: float = 3e-4
+    lr_critic: float = 3e-4
+    actor_hidden: tuple[int, ...] = (256, 256)
+    critic_hidden: tuple[int, ...] = (256, 256)
+    num_atoms: int = 101
+    v_min: float = -100.0
+    v_max: float = 100.0
+    n_steps: int = 5
+    gamma: float = 0.99
+    target_update_period: int = 100
+    prioritized: bool = True
+    alpha: float = 0.6
+    beta: float = 0.4
+    # Gentleness rewards and their models.
+    lam: tuple[float, float] = (2.0, 2.0)
+    lam_prime: tuple[float, float] = (2.0, 2.0)
+    reward_delay: int = 2_000
+    dynamics_target_period: int = 500
+    penalty_target_period: int = 100
+    ensemble_size: int = 5
+    model_hidden: int = 128
+    model_batch_size: int = 64
+    model_buffer_size: int = 100_000
+    lr_model: float = 1e-3
+    surprise_scale: float = 1.0
+    icm_eta: float = 1.0
+    # Evaluation, logging, checkpoints.
+    eval_every_frames: int = 5_000
+    eval_episodes: int = 10
+    log_every_updates: int = 200
+    checkpoint_every_frames: int = 10_000
+    run_dir: str = "runs/default"
+    resume: bool = False
+    wandb_mode: str = "offline"
+    wandb_project: str = "gentlerl"
+    num_threads: int = 2
+    progress: bool = True
+
+    @property
+    def reward_keys(self) -> list[str]:
+        return list(VARIANTS[self.variant])
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+#: Presets; user overrides are applied on top of them by :func:`make_config`.
+SCALES: dict[str, dict[str, Any]] = {
+    "cpu": {},
+    "paper": {
+        "total_frames": 500_000,
+        "init_random_frames": 10_000,
+        "batch_size": 256,
+        "buffer_size": 1_000_000,
+        "utd_ratio": 1.0,
+        "lr_actor": 1e-4,
+        "lr_critic": 1e-4,
+        "actor_hidden": (300, 200),
+        "critic_hidden": (400, 300),
+        "reward_delay": 20_000,
+        "dynamics_target_period": 5_000,
+        "penalty_target_period": 1_000,
+        "model_batch_size": 256,
+        "model_buffer_size": 1_000_000,
+        "eval_every_frames": 25_000,
+        "checkpoint_every_frames": 50_000,
+    },
+}
+
+
+def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
+    """The ``scale`` preset with ``overrides`` on top, validated."""
+    if scale not in SCALES:
+        raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
+    names = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(overrides) - names)
+    if unknown:
+        raise ValueError(f"unknown config field(s) {unknown}; valid fields: {sorted(names)}")
+    values = {**SCALES[scale], **overrides, "scale": scale}
+    for name in ("actor_hidden", "critic_hidden", "lam", "lam_prime"):
+        if name in values:
+            values[name] = tuple(values[name])
+    if "env_kwargs" in values:
+        values["env_kwargs"] = dict(values["env_kwargs"])
+    cfg = TrainConfig(**values)
+    validate(cfg)
+    return cfg
+
+
+def validate(cfg: TrainConfig) -> None:
+    """Raise one ``ValueError`` listing every problem, before anything starts."""
+    problems = []
+    if cfg.task not in TASK_NAMES:
+        problems.append(f"task={cfg.task!r} is not one of {list(TASK_NAMES)}")
+    if cfg.variant not in VARIANTS:
+        problems.append(f"variant={cfg.variant!r} is not one of {sorted(VARIANTS)}")
+    if cfg.collector not in COLLECTORS:
+        problems.append(f"collector={cfg.collector!r} is not one of {list(COLLECTORS)}")
+    if cfg.wandb_mode not in WANDB_MODES:
+        problems.append(f"wandb_mode={cfg.wandb_mode!r} is not one of {list(WANDB_MODES)}")
+    positive = (
+        "total_frames frames_per_batch num_workers batch_size buffer_size num_atoms n_steps "
+        "target_update_period dynamics_target_period penalty_target_period ensemble_size "
+        "model_hidden model_batch_size model_buffer_size eval_every_frames log_every_updates "
+        "checkpoint_every_frames num_threads"
+    ).split()
+    for name in positive:
+        if getattr(cfg, name) < 1:
+            problems.append(f"{name}={getattr(cfg, name)} must be >= 1")
+    non_negative = (
+        "init_random_frames reward_delay eval_episodes sigma utd_ratio surprise_scale icm_eta"
+    )
+    for name in non_negative.split():
+        if not getattr(cfg, name) >= 0:
+            problems.append(f"{name}={getattr(cfg, name)} must be >= 0")
+    for name in ("lr_actor", "lr_critic", "lr_model"):
+        if not getattr(cfg, name) > 0:
+            problems.append(f"{name}={getattr(cfg, name)} must be > 0")
+    for name in ("actor_hidden", "critic_hidden"):
+        if not getattr(cfg, name) or min(getattr(cfg, name)) < 1:
+            problems.append(f"{name}={getattr(cfg, name)} must be a non-empty list of sizes >= 1")
+    for name in ("lam", "lam_prime"):
+        value = getattr(cfg, name)
+        if len(value) != 2 or value[0] <= 0 or value[1] < 0:
+            problems.append(f"{name}={value} must be [lambda_1 > 0, lambda_2 >= 0]")
+    if not 0.0 < cfg.gamma <= 1.0:
+        problems.append(f"gamma={cfg.gamma} must be in (0, 1]")
+    if not cfg.v_min < cfg.v_max:
+        problems.append(f"v_min={cfg.v_min} must be < v_max={cfg.v_max}")
+    if not 0.0 <= cfg.alpha <= 1.0 or not 0.0 <= cfg.beta <= 1.0:
+        problems.append(f"alpha={cfg.alpha} and beta={cfg.beta} must be in [0, 1]")
+    if problems:
+        raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
