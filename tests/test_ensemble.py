@@ -97,7 +97,10 @@ def _toy_transitions(n, gen):
     def policy(td):
         return td.set(keys.ACTION, torch.rand(20, generator=gen) * 2 - 1)
 
-    data = [env.rollout(20, policy=policy) for _ in range(-(-n // 20))]
+    data, count = [], 0
+    while count < n:
+        data.append(env.rollout(20, policy=policy))
+        count += data[-1].numel()
     return torch.cat(data)[:n]
 
 

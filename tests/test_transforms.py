@@ -51,9 +51,10 @@ def test_impact_penalty_custom_keys_and_bad_args():
 
 
 def _pressing_rollout(env, steps=12):
-    # Joint 0 moves +0.1 per step: it passes the wall at 0.5 after 5 steps, then presses.
+    # Joint 1 moves +0.1 per step: it passes the wall at 0.5 after 5 steps, then presses with
+    # fingertip 1 (only fingertip 0 ends the toy episode).
     action = torch.zeros(20)
-    action[0] = 1.0
+    action[1] = 1.0
     return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action))
 
 
@@ -65,7 +66,7 @@ def test_impact_penalty_on_env_specs_reset_and_values():
     assert reset[keys.IMPACT].abs().sum() == 0  # no spurious impact at reset
     rollout = _pressing_rollout(env)
     # From step 6 on, the force rises by 0.1 * 20 = 2 N (+ 0.2 N tangential) per step.
-    impacts = rollout["next", keys.IMPACT][:, 0]
+    impacts = rollout["next", keys.IMPACT][:, 1]
     assert impacts[:5].abs().max() < 1e-5
     torch.testing.assert_close(impacts[6:], torch.full((6,), 2.2), atol=1e-4, rtol=0)
     a = 1 / (1 + math.exp(2 * (2.2 - 2)))
