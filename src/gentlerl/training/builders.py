@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from functools import partial
 
 import torch
-from torchrl.collectors import Collector, MultiAsyncCollector
+from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.objectives import HardUpdate
 
@@ -132,8 +132,14 @@ def make_collector(
     policy: torch.nn.Module,
     frames_left: int,
     random_left: int,
-) -> Collector | MultiAsyncCollector:
-    """TorchRL ``Collector`` (one process) or ``MultiAsyncCollector`` (``num_workers`` processes)."""
+) -> Collector | MultiSyncCollector:
+    """TorchRL ``Collector`` (one process) or ``MultiSyncCollector`` (``num_workers`` processes).
+
+    The multi-process collector is the *synchronous* one: it stacks the workers' batches into
+    ``[num_workers, T]``, so each row stays time-contiguous across batches (what the n-step
+    transform of the replay buffer needs), and runs are reproducible with a seed.
+    ``MultiAsyncCollector`` interleaves workers' batches in arrival order, which breaks both.
+    """
     common = dict(
         frames_per_batch=cfg.frames_per_batch,
         total_frames=frames_left,
@@ -141,7 +147,9 @@ def make_collector(
     )
     if cfg.collector == "single":
         return Collector(env_factory, policy, **common)
-    return MultiAsyncCollector([env_factory] * cfg.num_workers, policy, **common)
+    return MultiSyncCollector(
+        [env_factory] * cfg.num_workers, policy, cat_results="stack", **common
+    )
 
 
 def make_exploration(learner: Learner, cfg: TrainConfig, action_dim: int) -> torch.nn.Module:

@@ -8,6 +8,7 @@ under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames collec
 from __future__ import annotations
 
 import csv
+import os
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,21 @@ class RunLogger:
         for logger in self.loggers:
             for name, value in scalars.items():
                 logger.log_scalar(name, float(value), step=step)
+
+    def truncate_after(self, frames: int) -> None:
+        """Drop rows logged after ``frames`` (a resumed run re-collects them; no duplicated steps)."""
+        for path in [
+            *self.run_dir.glob("logs/scalars/**/*.csv"),
+            self.run_dir / "eval_episodes.csv",
+        ]:
+            if not path.is_file():
+                continue
+            lines = path.read_text().splitlines(keepends=True)
+            header = lines[:1] if path.name == "eval_episodes.csv" else []
+            kept = [row for row in lines[len(header) :] if int(row.split(",", 1)[0]) <= frames]
+            tmp = path.with_suffix(".csv.tmp")
+            tmp.write_text("".join(header + kept))
+            os.replace(tmp, path)
 
     def log_eval_episodes(self, frames: int, episodes: list[dict[str, float]]) -> None:
         path = self.run_dir / "eval_episodes.csv"

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 import yaml
+from tensordict import TensorDictBase
+from torchrl.envs.transforms import MultiStepTransform
 from tqdm.auto import tqdm
 
 from gentlerl import keys
@@ -98,9 +100,8 @@ class Trainer:
             "target_counter": self.learner.target_updater.counter,
             "stack": self.stack.state_dict(),
             "model_optims": {k: o.state_dict() for k, o in self.model_optims.items()},
-            # The n-step transform's pending tail is not saved on purpose: a resumed run starts
-            # new episodes, and those transitions must not be summed across the cut.
             "rb": self.rb.state_dict(),
+            "nstep_tail": self._nstep()._buffer,
             "model_rb": self.model_rb.state_dict(),
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
@@ -117,12 +118,16 @@ class Trainer:
         for k, o in self.model_optims.items():
             o.load_state_dict(state["model_optims"][k])
         self.rb.load_state_dict(state["rb"])
+        self._nstep()._buffer = _cut(state["nstep_tail"])
         self.model_rb.load_state_dict(state["model_rb"])
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
         self.counters = dict(state["counters"])
         self.eval_history = list(state["eval_history"])
         _set_rng_state(state["rng"])
+
+    def _nstep(self) -> MultiStepTransform:
+        return next(t for t in self.rb.transform if isinstance(t, MultiStepTransform))
 
     def save(self) -> None:
         save_checkpoint(self.run_dir / CHECKPOINT, self.state_dict())
@@ -169,8 +174,14 @@ class Trainer:
         ckpt = self.run_dir / CHECKPOINT
         if cfg.resume and ckpt.exists():
             self.load_state_dict(load_checkpoint(ckpt))
+        elif not cfg.resume and (ckpt.exists() or (self.run_dir / "logs").exists()):
+            raise ValueError(
+                f"run_dir={str(self.run_dir)!r} already holds a run; pass resume=true to continue "
+                "it, or choose another run_dir"
+            )
         (self.run_dir / "config.yaml").write_text(yaml.safe_dump(_plain(cfg.to_dict())))
         logger = RunLogger(self.run_dir, _plain(cfg.to_dict()), cfg.wandb_mode, cfg.wandb_project)
+        logger.truncate_after(self.counters["frames"])
         tracker = EpisodeTracker(cfg.reward_keys)
         eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000)
         frames_left = cfg.total_frames - self.counters["frames"]
@@ -205,7 +216,7 @@ class Trainer:
                 logger.log({f"episode/{k}": v for k, v in ep.items()}, c["frames"])
                 recent = (recent + [ep])[-20:]
             self.model_rb.extend(
-                batch.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID), "collector")
+                batch.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID), "collector").reshape(-1)
             )
             self.rb.extend(batch.select(*AGENT_KEYS, *[("next", k) for k in cfg.reward_keys]))
             if c["frames"] > cfg.init_random_frames and len(self.rb) >= cfg.batch_size:
@@ -254,6 +265,21 @@ class Trainer:
         logger.log_eval_episodes(frames, episodes)
         self.eval_history.append({"frames": frames, **summary})
         return summary
+
+
+def _cut(tail: TensorDictBase | None) -> TensorDictBase | None:
+    """Mark the last pending step of each n-step window as truncated.
+
+    The resumed collector starts new episodes, so the episodes running at checkpoint time end
+    there: their pending transitions are written with windows cut at that step (bootstrapping
+    from it, as a time limit would), none lost and none summed across the cut.
+    """
+    if tail is None:
+        return None
+    tail = tail.clone()
+    for key in (keys.DONE, keys.TRUNCATED):
+        tail.get(("next", key))[..., -1, :] = True
+    return tail
 
 
 def _plain(value: Any) -> Any:
