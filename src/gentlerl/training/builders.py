@@ -38,16 +38,31 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
     return partial(make_env, cfg.task, **cfg.env_kwargs)
 
 
-def check_reward_keys(env: EnvBase, stack: RewardStack) -> None:
-    """One clear error if a reward component of the variant is not produced by env + transforms."""
-    transformed = TransformedEnv(env, stack.transform.clone())
-    produced = set(transformed.full_reward_spec.keys(True, True)) | set(
-        transformed.full_observation_spec.keys(True, True)
-    )
-    missing = [k for k in stack.reward_keys if k not in produced]
+#: What the loop reads from every env step besides the variant's reward components.
+REQUIRED_ENV_KEYS = (keys.OBSERVATION, keys.SUCCESS, keys.BROKEN)
+
+
+def check_env_keys(env: EnvBase, stack: RewardStack) -> None:
+    """One clear error if env + reward transforms do not produce what the run reads.
+
+    That is :data:`REQUIRED_ENV_KEYS`, ``impact`` (``ImpactPenalty``, logged for every variant)
+    and every reward component of the variant.
+    """
+    try:
+        transformed = TransformedEnv(env, stack.transform.clone(), auto_unwrap=False)
+        produced = set(transformed.full_reward_spec.keys(True, True)) | set(
+            transformed.full_observation_spec.keys(True, True)
+        )
+    except KeyError as err:
+        raise ValueError(
+            f"the env does not produce {err} that the reward transforms read "
+            f"(env observation keys: {sorted(map(str, env.full_observation_spec.keys(True, True)))})"
+        ) from err
+    wanted = [*REQUIRED_ENV_KEYS, keys.IMPACT, *stack.reward_keys]
+    missing = [k for k in wanted if k not in produced]
     if missing:
         raise ValueError(
-            f"reward key(s) {missing} of the variant are produced neither by the env nor by the "
+            f"key(s) {missing} needed by the run are produced neither by the env nor by the "
             f"reward transforms (produced: {sorted(map(str, produced))})"
         )
 

@@ -24,7 +24,7 @@ from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
-    check_reward_keys,
+    check_env_keys,
     default_env_factory,
     make_buffers,
     make_collector,
@@ -78,7 +78,7 @@ class Trainer:
         self.action_dim = probe.action_spec.shape[-1]
         self.max_steps = int(getattr(probe, "time_limit", 1000))
         self.stack = make_reward_stack(cfg, self.obs_dim, self.action_dim)
-        check_reward_keys(probe, self.stack)
+        check_env_keys(probe, self.stack)
         probe.close()
         self.learner = make_learner(cfg, self.obs_dim, self.action_dim)
         self.model_optims = {
