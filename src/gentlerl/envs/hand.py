@@ -1,0 +1,202 @@
+"""dm_control Physics and Tasks of the gentle-touch experiments (Huang et al. 2019, "Tasks").
+
+Control at 20 Hz: each control step runs ``n_sub_steps`` MuJoCo steps of 2 ms (25 x 2 ms = 50 ms).
+The action is a *delta position* in [-1, 1]^20: scaled by ``action_scale`` x each actuator's
+ctrl range, added to the current position targets, clipped to the ctrl ranges.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control.mujoco import Physics
+from dm_control.suite import base
+from dm_control.utils import containers
+from dm_env import specs
+
+from gentlerl.envs.assets import CHANNELS, FINGERTIPS, GRID, TOUCH_SITES
+
+CONTROL_TIMESTEP = 0.05  # 20 Hz
+# Block centre (world frame), 6.6 cm above the pads of the four fingers' distal phalanges, which
+# face up at the initial pose (palm up, fingers straight, pads at z = 0.144). With the default
+# action_scale, uniformly random actions touch it in ~40 % of episodes and succeed in ~2 %, while
+# flexing the wrist and the index knuckle together presses it with > 5 N in 16 steps.
+BLOCK_POS = (1.0, 0.785, 0.21)
+SUITE = containers.TaggedTasks()
+
+
+class HandPhysics(Physics):
+    """Physics with named accessors for the observations (dm_control convention)."""
+
+    def joint_pos(self) -> np.ndarray:
+        return self.data.qpos[:24].copy()
+
+    def joint_vel(self) -> np.ndarray:
+        return self.data.qvel[:24].copy()
+
+    def touch_grid(self) -> np.ndarray:
+        """Raw touch grids ``[5, 3, 4, 4]`` (N): normal, then two tangential channels."""
+        return (
+            self.data.sensordata[-len(TOUCH_SITES) * CHANNELS * GRID[0] * GRID[1] :]
+            .reshape(len(TOUCH_SITES), CHANNELS, *GRID)
+            .copy()
+        )
+
+    def block_contact(self) -> np.ndarray:
+        """``[5]`` bool: whether each fingertip's distal phalanx touches the block."""
+        tips = [self.model.geom(f"robot0:C_{f}distal").id for f in FINGERTIPS]
+        block = self.model.geom("block").id
+        touching = np.zeros(len(tips), dtype=bool)
+        contact = self.data.contact
+        for g1, g2 in zip(
+            contact.geom1[: self.data.ncon], contact.geom2[: self.data.ncon], strict=True
+        ):
+            other = g2 if g1 == block else g1 if g2 == block else None
+            if other is not None and other in tips:
+                touching[tips.index(other)] = True
+        return touching
+
+    def touch(self) -> np.ndarray:
+        """Per fingertip and channel, the sum of |value| over the 4x4 grid: ``[5, 3]`` (N)."""
+        return np.abs(self.touch_grid()).sum(axis=(-2, -1))
+
+
+def _check_non_negative(**values: float) -> None:
+    for name, value in values.items():
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+class Explore(base.Task):
+    """No task reward: the hand moves its fingers near a fixed block for ``time_limit`` steps."""
+
+    def __init__(
+        self,
+        *,
+        action_scale: float = 0.02,
+        randomize_block: bool = True,
+        block_range: float = 0.005,
+        block_pos: tuple[float, float, float] = BLOCK_POS,
+        random: int | np.random.RandomState | None = None,
+    ) -> None:
+        _check_non_negative(block_range=block_range)
+        if not 0 < action_scale <= 1:
+            raise ValueError(f"action_scale must be in (0, 1], got {action_scale!r}")
+        super().__init__(random=random)
+        self.action_scale = action_scale
+        self.randomize_block = randomize_block
+        self.block_range = block_range
+        self.block_pos = np.asarray(block_pos, dtype=np.float64)
+        if self.block_pos.shape != (3,):
+            raise ValueError(f"block_pos must be (x, y, z), got {block_pos!r}")
+        self._previous_touch = np.zeros((len(TOUCH_SITES), CHANNELS))
+        self.success = False
+        self.broken = False
+
+    # -- episode -------------------------------------------------------------------------
+    def initialize_episode(self, physics: HandPhysics) -> None:
+        with physics.reset_context():
+            physics.data.qpos[:] = 0.0
+            physics.data.qvel[:] = 0.0
+            low, high = physics.model.actuator_ctrlrange.T
+            physics.data.ctrl[:] = np.clip(0.0, low, high)
+            block = physics.model.body("block").mocapid[0]
+            offset = np.zeros(3)
+            if self.randomize_block:
+                offset[:2] = self.random.uniform(-self.block_range, self.block_range, size=2)
+            physics.data.mocap_pos[block] = self.block_pos + offset
+        self._previous_touch = physics.touch()
+        self.success = self.broken = False
+
+    def before_step(self, action: np.ndarray, physics: HandPhysics) -> None:
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (physics.model.nu,):
+            raise ValueError(f"action must have shape ({physics.model.nu},), got {action.shape}")
+        if not np.isfinite(action).all():
+            raise ValueError(f"action must be finite, got {action}")
+        low, high = physics.model.actuator_ctrlrange.T
+        delta = np.clip(action, -1.0, 1.0) * self.action_scale * (high - low)
+        physics.data.ctrl[:] = np.clip(physics.data.ctrl + delta, low, high)
+
+    def after_step(self, physics: HandPhysics) -> None:
+        touch = physics.touch()
+        self.update_outcome(touch, self._previous_touch, physics.block_contact())
+        self._previous_touch = touch
+
+    def update_outcome(self, touch: np.ndarray, previous: np.ndarray, on_block: np.ndarray) -> None:
+        """Set :attr:`success` / :attr:`broken` for this step (nothing to do without a task).
+
+        ``touch`` / ``previous``: ``[5, 3]`` readings after / before the step; ``on_block``:
+        ``[5]`` which fingertips touch the block (self-contacts between fingers do not count).
+        """
+
+    # -- dm_control Task API ---------------------------------------------------------------
+    def action_spec(self, physics: HandPhysics) -> specs.BoundedArray:
+        return specs.BoundedArray((physics.model.nu,), np.float64, -1.0, 1.0, name="action")
+
+    def get_observation(self, physics: HandPhysics) -> dict[str, np.ndarray]:
+        grid = physics.touch_grid()
+        return {
+            "joint_pos": physics.joint_pos(),
+            "joint_vel": physics.joint_vel(),
+            "touch": np.abs(grid).sum(axis=(-2, -1)),
+            "touch_grid": grid,
+        }
+
+    def get_reward(self, physics: HandPhysics) -> float:
+        return 0.0
+
+    def get_termination(self, physics: HandPhysics) -> float | None:
+        return None
+
+
+class Touch(Explore):
+    """Reward +1 and termination when any fingerpad presses the block with > ``force_threshold`` N."""
+
+    def __init__(
+        self, *, force_threshold: float = 5.0, success_reward: float = 1.0, **kwargs
+    ) -> None:
+        _check_non_negative(force_threshold=force_threshold)
+        super().__init__(**kwargs)
+        self.force_threshold = force_threshold
+        self.success_reward = success_reward
+
+    def update_outcome(self, touch: np.ndarray, previous: np.ndarray, on_block: np.ndarray) -> None:
+        self.success = bool((touch[on_block, 0] > self.force_threshold).any())
+
+    def get_reward(self, physics: HandPhysics) -> float:
+        return self.success_reward if self.success else 0.0
+
+    def get_termination(self, physics: HandPhysics) -> float | None:
+        return 0.0 if self.success else None
+
+
+class Fragile(Touch):
+    """Touch with a fragile block: success pays +5; an impact > ``break_impact`` N at any fingertip
+    (force increase summed over channels in one control step, paper eq. 1) breaks the block:
+    reward ``break_reward`` (-0.5) and termination."""
+
+    def __init__(
+        self,
+        *,
+        break_impact: float = 3.0,
+        break_reward: float = -0.5,
+        success_reward: float = 5.0,
+        **kwargs,
+    ) -> None:
+        _check_non_negative(break_impact=break_impact)
+        super().__init__(success_reward=success_reward, **kwargs)
+        self.break_impact = break_impact
+        self.break_reward = break_reward
+
+    def update_outcome(self, touch: np.ndarray, previous: np.ndarray, on_block: np.ndarray) -> None:
+        impact = np.clip(touch - previous, 0.0, None).sum(-1)
+        self.broken = bool((impact[on_block] > self.break_impact).any())
+        self.success = not self.broken and bool((touch[on_block, 0] > self.force_threshold).any())
+
+    def get_reward(self, physics: HandPhysics) -> float:
+        if self.broken:
+            return self.break_reward
+        return super().get_reward(physics)
+
+    def get_termination(self, physics: HandPhysics) -> float | None:
+        return 0.0 if (self.success or self.broken) else None
