@@ -73,7 +73,7 @@ class TrainConfig:
     resume: bool = False
     wandb_mode: str = "offline"
     wandb_project: str = "gentlerl"
-    num_threads: int = 2
+    num_threads: int = 1  # one thread: on 2 cores the env and other processes need the other
     progress: bool = True
 
     @property
