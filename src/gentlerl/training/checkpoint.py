@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from torchrl.data import ReplayBuffer
 
 
 def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
@@ -36,3 +37,25 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint at {path}")
     return torch.load(path, map_location="cpu", weights_only=False)
+
+
+def replay_buffer_state(rb: ReplayBuffer) -> dict[str, Any]:
+    """``rb.state_dict()`` with only the filled part of a ``LazyTensorStorage``.
+
+    TorchRL saves the whole pre-allocated storage (1M rows at paper scale); a half-empty buffer
+    would write its empty rows too.
+    """
+    state = rb.state_dict()
+    storage = rb.storage
+    data = storage._storage[: len(storage)].clone() if storage.initialized else None
+    state["_storage"] = {"data": data}
+    return state
+
+
+def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any]) -> None:
+    """Inverse of :func:`replay_buffer_state` on a freshly built buffer of the same capacity."""
+    data = state["_storage"]["data"]
+    empty = {"_storage": {}, "initialized": False, "_len": 0}
+    rb.load_state_dict({**state, "_storage": empty})
+    if data is not None:
+        rb.storage.set(torch.arange(len(data)), data)  # allocates the full capacity

@@ -33,7 +33,12 @@ from gentlerl.training.builders import (
     make_learner,
     make_reward_stack,
 )
-from gentlerl.training.checkpoint import load_checkpoint, save_checkpoint
+from gentlerl.training.checkpoint import (
+    load_checkpoint,
+    load_replay_buffer_state,
+    replay_buffer_state,
+    save_checkpoint,
+)
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EpisodeTracker, RunLogger
@@ -100,9 +105,9 @@ class Trainer:
             "target_counter": self.learner.target_updater.counter,
             "stack": self.stack.state_dict(),
             "model_optims": {k: o.state_dict() for k, o in self.model_optims.items()},
-            "rb": self.rb.state_dict(),
+            "rb": replay_buffer_state(self.rb),
             "nstep_tail": self._nstep()._buffer,
-            "model_rb": self.model_rb.state_dict(),
+            "model_rb": replay_buffer_state(self.model_rb),
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
             "eval_history": list(self.eval_history),
@@ -117,9 +122,9 @@ class Trainer:
         self.stack.load_state_dict(state["stack"])
         for k, o in self.model_optims.items():
             o.load_state_dict(state["model_optims"][k])
-        self.rb.load_state_dict(state["rb"])
+        load_replay_buffer_state(self.rb, state["rb"])
         self._nstep()._buffer = _cut(state["nstep_tail"])
-        self.model_rb.load_state_dict(state["model_rb"])
+        load_replay_buffer_state(self.model_rb, state["model_rb"])
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
         self.counters = dict(state["counters"])

@@ -1,0 +1,137 @@
+"""Checkpoints: atomic writes, a full-state round trip, and resuming a SIGKILLed run."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from gentlerl.data import make_replay_buffer
+from gentlerl.training import Trainer, load_checkpoint, save_checkpoint
+from gentlerl.training.checkpoint import load_replay_buffer_state, replay_buffer_state
+from tests.test_training_loop import tiny_config, toy_env
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_save_is_atomic(tmp_path):
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, {"frames": 100, "w": torch.arange(3)})
+    with pytest.raises(Exception):  # noqa: B017 - pickling a lambda fails mid-write
+        save_checkpoint(path, {"frames": 200, "bad": lambda: None})
+    state = load_checkpoint(path)
+    assert state["frames"] == 100 and state["w"].tolist() == [0, 1, 2]
+    assert [p.name for p in tmp_path.iterdir()] == ["checkpoint.pt"]  # no temp file left
+
+
+def test_missing_checkpoint(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no checkpoint at"):
+        load_checkpoint(tmp_path / "nope.pt")
+
+
+def _transitions(start: int, n: int) -> TensorDict:
+    obs = torch.arange(start, start + n, dtype=torch.float32).unsqueeze(-1)
+    flag = torch.zeros(n, 1, dtype=torch.bool)
+    nxt = {"observation": obs + 1, "reward": torch.ones(n, 1), "done": flag, "terminated": flag,
+           "truncated": flag}  # fmt: skip
+    return TensorDict({"observation": obs, "action": obs, "next": nxt}, [n])
+
+
+def test_replay_buffer_round_trip_saves_only_filled_rows(tmp_path):
+    rb = make_replay_buffer(10_000, 4, n_steps=3)
+    rb.extend(_transitions(0, 20))
+    rb.update_priority(torch.arange(5), torch.full((5,), 7.0))
+    state = replay_buffer_state(rb)
+    assert state["_storage"]["data"].shape == (17,)  # 20 written, 3 wait for their window
+    save_checkpoint(tmp_path / "rb.pt", state)
+    save_checkpoint(tmp_path / "full.pt", rb.state_dict())  # TorchRL's: 10k pre-allocated rows
+    assert (tmp_path / "rb.pt").stat().st_size < (tmp_path / "full.pt").stat().st_size / 3
+    restored = make_replay_buffer(10_000, 4, n_steps=3)
+    load_replay_buffer_state(restored, load_checkpoint(tmp_path / "rb.pt"))
+    assert len(restored) == 17 and (restored[:] == rb[:]).all()
+    assert restored.sampler._sum_tree.query(0, 17) == pytest.approx(
+        rb.sampler._sum_tree.query(0, 17)
+    )
+    restored.extend(_transitions(100, 5))  # full capacity after loading: writes go on
+    assert len(restored) == 17 + 2  # 3 of the 5 new ones wait for their window
+
+
+def test_trainer_state_round_trip(tmp_path):
+    run = Trainer(tiny_config(tmp_path, total_frames=500), toy_env)
+    run.run()
+    resumed = Trainer(tiny_config(tmp_path, total_frames=500, resume=True), toy_env)
+    resumed.load_state_dict(load_checkpoint(tmp_path / "checkpoint.pt"))
+    assert resumed.counters == run.counters == {"frames": 500, "updates": 150, "update_credit": 0}
+    for a, b in zip(resumed.learner.loss.parameters(), run.learner.loss.parameters(), strict=True):
+        assert torch.equal(a, b)
+    target = "target_value_network_params"
+    assert (getattr(resumed.learner.loss, target) == getattr(run.learner.loss, target)).all()
+    assert resumed.learner.target_updater.counter == run.learner.target_updater.counter
+    sa, sb = resumed.learner.critic_optim.state_dict(), run.learner.critic_optim.state_dict()
+    assert all(
+        torch.equal(sa["state"][k]["exp_avg"], sb["state"][k]["exp_avg"]) for k in sa["state"]
+    )
+    assert (resumed.rb[:] == run.rb[:]).all() and len(resumed.model_rb) == 500
+    for name, loss in run.stack.model_losses.items():
+        other = resumed.stack.model_losses[name].state_dict()
+        assert all(torch.equal(v, other[k]) for k, v in loss.state_dict().items())
+    assert resumed.stack.intrinsic_on == run.stack.intrinsic_on
+    assert torch.equal(torch.get_rng_state(), run.state_dict()["rng"]["torch"])
+    # The pending n-step tail (the last 5 steps) comes back with its last step cut (truncated).
+    tail = resumed._nstep()._buffer
+    assert tail.shape == (5,) and tail["next", "truncated"][:, 0].tolist() == [0, 0, 0, 0, 1]
+
+
+def test_resume_to_a_longer_run_keeps_every_transition(tmp_path):
+    straight = Trainer(tiny_config(tmp_path / "a", total_frames=800), toy_env)
+    straight.run()
+    train_part = Trainer(tiny_config(tmp_path / "b", total_frames=500), toy_env)
+    train_part.run()
+    resumed = Trainer(tiny_config(tmp_path / "b", total_frames=800, resume=True), toy_env)
+    resumed.run()
+    assert resumed.counters["frames"] == 800 and resumed.counters["updates"] == 300
+    # 800 frames, the last 5 pending for their n-step window: same count with and without a cut.
+    assert len(resumed.rb) == len(straight.rb) == 795 and len(resumed.model_rb) == 800
+
+
+def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
+    run_dir = tmp_path / "run"
+    command = [
+        sys.executable, str(ROOT / "recipes" / "train.py"), "task=touch", "variant=r+rf",
+        f"run_dir={run_dir}", "total_frames=1600", "frames_per_batch=100",
+        "init_random_frames=100", "checkpoint_every_frames=300", "eval_every_frames=100000",
+        "eval_episodes=1", "batch_size=16", "actor_hidden=[16]", "critic_hidden=[16]",
+        "num_atoms=11", "buffer_size=5000", "model_buffer_size=5000", "wandb_mode=disabled",
+        "progress=false", "num_threads=1", "utd_ratio=0.25", "+env_kwargs.time_limit=40",
+    ]  # fmt: skip
+    env = {**os.environ, "RL_WARNINGS": "0"}
+    proc = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    ckpt = run_dir / "checkpoint.pt"
+    deadline = time.monotonic() + 120
+    while not ckpt.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert ckpt.exists(), proc.stderr.read().decode()[-2000:]
+    assert proc.returncode == -signal.SIGKILL and not (run_dir / "DONE").exists()
+    killed_at = load_checkpoint(ckpt)["counters"]["frames"]
+    assert 300 <= killed_at < 1600
+    done = subprocess.run([*command, "resume=true"], env=env, capture_output=True, timeout=180)
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    assert (run_dir / "DONE").exists()
+    state = load_checkpoint(ckpt)
+    assert state["counters"]["frames"] == 1600
+    assert state["counters"]["updates"] == 0.25 * (1600 - 100)
+    # Every frame is in the models' 1-step buffer and all but the 5 pending in the n-step one.
+    assert len(state["model_rb"]["_storage"]["data"]) == 1600
+    assert len(state["rb"]["_storage"]["data"]) == 1600 - 5
+    # The logs hold each frame count once: rows past the checkpoint were dropped on resume.
+    steps = [
+        int(r.split(",")[0]) for r in (run_dir / "logs/scalars/train/env_steps_per_s.csv").open()
+    ]
+    assert steps == list(range(100, 1601, 100))

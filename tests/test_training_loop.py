@@ -1,0 +1,189 @@
+"""The shared training loop on the toy hand env: determinism, update-to-data ratio, the run
+directory's logging contract, episode statistics, evaluation, and learning."""
+
+import csv
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torchrl.envs import TransformedEnv
+
+from gentlerl import keys
+from gentlerl.training import Trainer, make_config, train
+from gentlerl.training.evaluation import evaluate
+from gentlerl.training.logging import EVAL_COLUMNS, EpisodeTracker
+from gentlerl.transforms import ImpactPenalty
+from tests.toy_env import ToyHandEnv
+
+
+def tiny_config(run_dir: Path, **overrides):
+    """Small nets, few frames: a full loop (with model updates) in a few seconds."""
+    values = dict(
+        total_frames=1000,
+        frames_per_batch=100,
+        init_random_frames=200,
+        batch_size=32,
+        utd_ratio=0.5,
+        actor_hidden=(32, 32),
+        critic_hidden=(32, 32),
+        num_atoms=11,
+        v_min=-10.0,
+        v_max=10.0,
+        reward_delay=100,
+        dynamics_target_period=20,
+        penalty_target_period=10,
+        model_hidden=16,
+        model_batch_size=16,
+        eval_every_frames=500,
+        eval_episodes=2,
+        log_every_updates=50,
+        checkpoint_every_frames=500,
+        run_dir=str(run_dir),
+        wandb_mode="disabled",
+        progress=False,
+        num_threads=1,  # tiny nets; 2 threads on a shared 2-core CPU is many times slower
+    )
+    values.update(overrides)
+    return make_config(**values)
+
+
+def toy_env():
+    return ToyHandEnv(time_limit=50)
+
+
+def read_scalar(run_dir: Path, name: str) -> list[tuple[int, float]]:
+    path = run_dir / "logs" / "scalars" / f"{name}.csv"
+    return [(int(s), float(v)) for s, v in csv.reader(path.open())]
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("run")
+    trainer = Trainer(tiny_config(run_dir), toy_env)
+    summary = trainer.run()
+    return run_dir, trainer, summary
+
+
+def test_same_seed_same_losses_other_seed_other_losses(tmp_path):
+    for name, seed in (("first", 0), ("again", 0), ("seed1", 1)):
+        train(tiny_config(tmp_path / name, total_frames=600, seed=seed), toy_env)
+    for name in ("train/loss_value", "train/loss_actor", "train/model_penalty"):
+        first = read_scalar(tmp_path / "first", name)
+        assert len(first) == 4 and read_scalar(tmp_path / "again", name) == first, name
+        assert read_scalar(tmp_path / "seed1", name)[0] != first[0], name
+
+
+@pytest.mark.parametrize("utd_ratio", [0.5, 2.0])
+def test_update_to_data_ratio(tmp_path, utd_ratio):
+    trainer = Trainer(tiny_config(tmp_path, utd_ratio=utd_ratio, total_frames=500), toy_env)
+    trainer.run()
+    # Updates start after the 200 random frames: utd * (500 - 200) updates.
+    assert trainer.counters == {
+        "frames": 500,
+        "updates": int(utd_ratio * 300),
+        "update_credit": 0.0,
+    }
+
+
+def test_run_directory_follows_the_logging_contract(finished_run):
+    run_dir, trainer, summary = finished_run
+    assert (run_dir / "DONE").exists() and (run_dir / "checkpoint.pt").exists()
+    config = yaml.safe_load((run_dir / "config.yaml").read_text())
+    for key in ("task", "variant", "seed", "scale", "lam", "lam_prime", "reward_delay"):
+        assert key in config
+    assert config["variant"] == "r+rf+rsp" and config["total_frames"] == 1000
+    names = [
+        "episode/return_reward",
+        "episode/return_penalty",
+        "episode/return_penalty_surprise",
+        "episode/success",
+        "episode/broken",
+        "episode/max_impact",
+        "episode/length",
+        "eval/success_rate",
+        "eval/max_impact_mean",
+        "eval/return",
+        "train/loss_actor",
+        "train/loss_value",
+        "train/loss_value_reward",
+        "train/loss_value_penalty_surprise",
+        "train/batch_penalty",
+        "train/intrinsic_on",
+        "train/updates_per_s",
+        "train/env_steps_per_s",
+        "train/model_penalty",
+    ]
+    for name in names:
+        rows = read_scalar(run_dir, name)
+        # x-axis = env frames: collector batches are 100 frames.
+        assert rows and all(step % 100 == 0 and 0 < step <= 1000 for step, _ in rows), name
+    # Evaluations at 500, 1000 and the final one at 1000.
+    assert [s for s, _ in read_scalar(run_dir, "eval/success_rate")] == [500, 1000, 1000]
+    lengths = [v for _, v in read_scalar(run_dir, "episode/length")]
+    assert all(1 <= n <= 50 for n in lengths)
+    with (run_dir / "eval_episodes.csv").open() as f:
+        rows = list(csv.reader(f))
+    assert tuple(rows[0]) == EVAL_COLUMNS and len(rows) == 1 + 3 * 2
+    assert summary == {k: v for k, v in trainer.eval_history[-1].items() if k != "frames"}
+
+
+def test_intrinsic_rewards_switch_on_after_the_reward_delay(finished_run):
+    run_dir, trainer, _ = finished_run
+    # 400 updates in all, logged every 50; the reward delay is 100 model updates.
+    on = read_scalar(run_dir, "train/intrinsic_on")
+    updates_at = {step: 0.5 * (step - 200) for step, _ in on}
+    assert [v for s, v in on] == [float(updates_at[s] >= 100) for s, _ in on]
+    assert trainer.stack.intrinsic_on and trainer.counters["updates"] == 400
+
+
+def test_episode_tracker_spans_batches():
+    def batch(traj, reward, touch0, done):
+        n = len(traj)
+        touch = torch.zeros(n, 5, 3)
+        touch[:, 0, 0] = torch.tensor(touch0)
+        nxt = {
+            keys.REWARD: torch.tensor(reward).reshape(n, 1),
+            keys.PENALTY: -torch.ones(n, 1),
+            keys.IMPACT: touch[:, :, 0],
+            keys.SUCCESS: torch.tensor(reward).reshape(n, 1) > 0,
+            keys.BROKEN: torch.zeros(n, 1, dtype=torch.bool),
+            keys.DONE: torch.tensor(done).reshape(n, 1),
+        }
+        return TensorDict({("collector", "traj_ids"): torch.tensor(traj), "next": nxt}, [n])
+
+    tracker = EpisodeTracker([keys.REWARD, keys.PENALTY])
+    assert tracker.update(batch([0, 0, 0], [0.0, 0.0, 0.0], [1.0, 4.0, 2.0], [0, 0, 0])) == []
+    finished = tracker.update(batch([0, 1, 1], [1.0, 0.0, 0.0], [3.0, 0.5, 0.0], [1, 0, 1]))
+    assert finished == [
+        # Episode 0: 4 steps, max impact 4 N (second step), success on its last step.
+        dict(return_reward=1.0, return_penalty=-4.0, success=1.0, broken=0.0, max_impact=4.0,
+             length=4.0),
+        dict(return_reward=0.0, return_penalty=-2.0, success=0.0, broken=0.0, max_impact=0.5,
+             length=2.0),
+    ]  # fmt: skip
+
+
+def test_evaluation_is_deterministic_with_hand_computed_numbers():
+    # Pressing joint 0 at full speed: position +0.1 per step, force 20 N per unit past 0.5 on
+    # channel 0 and a tenth of that on channel 1, so each pressing step's impact is
+    # 2 + 0.2 = 2.2 N; the force passes 5 N at position 0.8, the 8th step (reward 1).
+    press = torch.zeros(20)
+    press[0] = 1.0
+    actor = TensorDictModule(
+        lambda obs: press.expand(*obs.shape[:-1], 20), ["observation"], ["action"]
+    )
+    env = TransformedEnv(toy_env(), ImpactPenalty())
+    summary, episodes = evaluate(env, actor, episodes=2, max_steps=50)
+    assert summary["success_rate"] == 1.0 and summary["broken_rate"] == 0.0
+    assert summary["max_impact_mean"] == pytest.approx(2.2, abs=1e-5)
+    assert summary["return"] == 1.0 and episodes[0] == episodes[1]
+
+
+@pytest.mark.slow
+def test_learns_the_toy_press_task(tmp_path):
+    cfg = tiny_config(tmp_path, variant="r", total_frames=4000, eval_every_frames=4000)
+    summary = train(cfg, toy_env)
+    assert summary["success_rate"] == 1.0
