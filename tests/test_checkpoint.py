@@ -12,7 +12,7 @@ import torch
 from tensordict import TensorDict
 
 from gentlerl.data import make_replay_buffer
-from gentlerl.training import Trainer, load_checkpoint, save_checkpoint
+from gentlerl.training import Trainer, load_checkpoint, load_policy, save_checkpoint
 from gentlerl.training.checkpoint import load_replay_buffer_state, replay_buffer_state
 from tests.test_training_loop import tiny_config, toy_env
 
@@ -82,6 +82,10 @@ def test_trainer_state_round_trip(tmp_path):
         assert all(torch.equal(v, other[k]) for k, v in loss.state_dict().items())
     assert resumed.stack.intrinsic_on == run.stack.intrinsic_on
     assert torch.equal(torch.get_rng_state(), run.state_dict()["rng"]["torch"])
+    cfg, actor = load_policy(tmp_path / "checkpoint.pt")
+    assert cfg == run.cfg
+    obs = TensorDict({"observation": torch.randn(7, 63)}, [7])
+    assert torch.equal(actor(obs.clone())["action"], run.learner.actor(obs.clone())["action"])
     # The pending n-step tail (the last 5 steps) comes back with its last step cut (truncated).
     tail = resumed._nstep()._buffer
     assert tail.shape == (5,) and tail["next", "truncated"][:, 0].tolist() == [0, 0, 0, 0, 1]

@@ -1,6 +1,6 @@
 """Training: config, the shared loop, checkpoints, logging, evaluation."""
 
-from gentlerl.training.checkpoint import load_checkpoint, save_checkpoint
+from gentlerl.training.checkpoint import load_checkpoint, load_policy, save_checkpoint
 from gentlerl.training.config import SCALES, TrainConfig, make_config, validate
 from gentlerl.training.loop import Trainer, train
 
@@ -9,6 +9,7 @@ __all__ = [
     "TrainConfig",
     "Trainer",
     "load_checkpoint",
+    "load_policy",
     "make_config",
     "save_checkpoint",
     "train",

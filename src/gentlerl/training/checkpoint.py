@@ -8,7 +8,11 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from tensordict.nn import TensorDictModule
 from torchrl.data import ReplayBuffer
+
+from gentlerl.models import make_actor
+from gentlerl.training.config import TrainConfig, make_config
 
 
 def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
@@ -59,3 +63,15 @@ def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any]) -> None:
     rb.load_state_dict({**state, "_storage": empty})
     if data is not None:
         rb.storage.set(torch.arange(len(data)), data)  # allocates the full capacity
+
+
+def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:
+    """The run's config and its deterministic actor (no exploration noise), from a checkpoint.
+
+    Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env_kwargs)``.
+    """
+    state = load_checkpoint(path)
+    cfg = make_config(**state["config"])
+    actor = make_actor(state["obs_dim"], state["action_dim"], cfg.actor_hidden)
+    actor.load_state_dict(state["actor"])
+    return cfg, actor.eval()

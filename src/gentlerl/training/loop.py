@@ -99,6 +99,9 @@ class Trainer:
     def state_dict(self) -> dict[str, Any]:
         return {
             "config": self.cfg.to_dict(),
+            "obs_dim": self.obs_dim,
+            "action_dim": self.action_dim,
+            "actor": self.learner.actor.state_dict(),
             "loss": self.learner.loss.state_dict(),
             "actor_optim": self.learner.actor_optim.state_dict(),
             "critic_optim": self.learner.critic_optim.state_dict(),
