@@ -17,6 +17,10 @@ CHANNELS = 3
 # rotations point each site's -z out of the pad.
 _FINGER_PAD_QUAT = "0.70710678 -0.70710678 0 0"
 _THUMB_PAD_QUAT = "0.70710678 0 0.70710678 0"
+# The block is a plate tilted by 0.75 rad about x: its lower face lies flat on the distal pads of
+# the first three fingers when their knuckles (J2) are flexed by 0.75 rad, so flexing a knuckle
+# further presses the pad straight into it (contact inside the touch grid's field of view).
+BLOCK_QUAT = "0.930508 -0.366271 0 0"
 
 
 def hand_asset_dir() -> Path:
@@ -107,8 +111,8 @@ def scene_xml(fov_deg: float = 90.0, actuator_gain: float = 3.0) -> str:
     <light directional="true" ambient="0.2 0.2 0.2" diffuse="0.8 0.8 0.8" pos="0 0 4" dir="0 0 -1"/>
     <camera name="side" pos="1.0 0.75 0.45" xyaxes="1 0 0 0 0.6 0.8" fovy="45"/>
     {robot}
-    <body name="block" mocap="true" pos="1 0.785 0.2">
-      <geom name="block" type="box" size="0.06 0.025 0.01" rgba="0.9 0.7 0.3 1"
+    <body name="block" mocap="true" pos="1 0.8124 0.2111" quat="{BLOCK_QUAT}">
+      <geom name="block" type="box" size="0.045 0.012 0.01" rgba="0.9 0.7 0.3 1"
             contype="1" conaffinity="1" friction="1 0.005 0.001"/>
     </body>
   </worldbody>

@@ -1,4 +1,4 @@
-"""``make_dm_env`` / ``make_env``: build a task by name (dm_control ``SUITE`` style)."""
+"""``make_dm_env`` / ``make_env``: build a task by name from a dm_control-style ``SUITE``."""
 
 from __future__ import annotations
 
@@ -7,40 +7,66 @@ from typing import Any
 import numpy as np
 import torch
 from dm_control.rl import control
+from dm_control.utils import containers
 
 from gentlerl.envs.assets import scene_xml
 from gentlerl.envs.hand import CONTROL_TIMESTEP, Explore, Fragile, HandPhysics, Touch
 from gentlerl.envs.torchrl_env import HandEnv
 
-_TASKS = {"explore": Explore, "touch": Touch, "fragile": Fragile}
-TASKS: tuple[str, ...] = tuple(_TASKS)
+SUITE = containers.TaggedTasks()
+
+
+def _load(
+    task_cls: type[Explore], time_limit: int, random: Any, **task_kwargs: Any
+) -> control.Environment:
+    if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
+        raise ValueError(f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}")
+    physics = HandPhysics.from_xml_string(scene_xml())
+    task = task_cls(random=random, **task_kwargs)
+    n_sub_steps = int(round(CONTROL_TIMESTEP / physics.model.opt.timestep))
+    # dm_control truncates once physics time >= time_limit; the epsilon makes that exactly
+    # ``time_limit`` control steps despite float rounding.
+    return control.Environment(
+        physics, task, time_limit=time_limit * CONTROL_TIMESTEP - 1e-9, n_sub_steps=n_sub_steps
+    )
+
+
+@SUITE.add()
+def explore(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+    """No task reward, fixed episode length (the paper's exploration setting)."""
+    return _load(Explore, time_limit, random, **task_kwargs)
+
+
+@SUITE.add()
+def touch(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+    """+1 and termination when a fingerpad presses the block with > 5 N."""
+    return _load(Touch, time_limit, random, **task_kwargs)
+
+
+@SUITE.add()
+def fragile(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+    """+5 for a > 5 N press; an impact > 3 N breaks the block (-0.5, termination)."""
+    return _load(Fragile, time_limit, random, **task_kwargs)
+
+
+TASKS: tuple[str, ...] = tuple(SUITE)
 
 
 def make_dm_env(
-    task: str = "touch", *, seed: int | None = None, time_limit: int = 200, **task_kwargs: Any
+    task: str = "touch", *, seed: int | None = None, **task_kwargs: Any
 ) -> control.Environment:
     """The plain dm_control environment of ``task`` (so dm_control's viewer and tools work).
 
     Args:
         task: one of :data:`TASKS`.
-        seed: seeds the task's RandomState (block placement).
-        time_limit: control steps (50 ms each) before truncation (default 200 = 10 s).
-        **task_kwargs: the task's keyword arguments, e.g. ``force_threshold=5.0``,
-            ``break_impact=3.0``, ``action_scale=0.05``, ``randomize_block=True``.
+        seed: seeds the task's RandomState (block placement); same seed, same rollouts.
+        **task_kwargs: ``time_limit`` (control steps of 50 ms before truncation, default 200)
+            and the task's keyword arguments, e.g. ``force_threshold=5.0``, ``break_impact=3.0``,
+            ``action_scale=0.02``, ``randomize_block=True``, ``block_range=0.005``.
     """
-    if task not in _TASKS:
+    if task not in SUITE:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
-    if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
-        raise ValueError(f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}")
-    physics = HandPhysics.from_xml_string(scene_xml())
-    task_obj = _TASKS[task](random=np.random.RandomState(seed), **task_kwargs)
-    n_sub_steps = int(round(CONTROL_TIMESTEP / physics.model.opt.timestep))
-    return control.Environment(
-        physics,
-        task_obj,
-        time_limit=time_limit * CONTROL_TIMESTEP - 1e-9,
-        n_sub_steps=n_sub_steps,
-    )
+    return SUITE[task](random=np.random.RandomState(seed), **task_kwargs)
 
 
 def make_env(
@@ -51,10 +77,14 @@ def make_env(
     from_pixels: bool = False,
     **task_kwargs: Any,
 ) -> HandEnv:
-    """The TorchRL env of ``task`` (passes ``torchrl.envs.utils.check_env_specs``)."""
-    time_limit = task_kwargs.pop("time_limit", 200)
-    dm_env = make_dm_env(task, seed=seed, time_limit=time_limit, **task_kwargs)
-    env = HandEnv(dm_env, time_limit=time_limit, device=device, from_pixels=from_pixels)
+    """The TorchRL env of ``task`` (passes ``torchrl.envs.utils.check_env_specs``).
+
+    Same arguments as :func:`make_dm_env`; ``from_pixels`` adds an 84x84 RGB ``pixels``
+    observation (needs an OpenGL backend, see :mod:`gentlerl.envs.rendering`).
+    """
+    env = HandEnv(
+        make_dm_env(task, seed=seed, **task_kwargs), device=device, from_pixels=from_pixels
+    )
     if seed is not None:
         env.set_seed(seed)
     return env

@@ -10,18 +10,16 @@ from __future__ import annotations
 import numpy as np
 from dm_control.mujoco import Physics
 from dm_control.suite import base
-from dm_control.utils import containers
 from dm_env import specs
 
 from gentlerl.envs.assets import CHANNELS, FINGERTIPS, GRID, TOUCH_SITES
 
 CONTROL_TIMESTEP = 0.05  # 20 Hz
-# Block centre (world frame), 6.6 cm above the pads of the four fingers' distal phalanges, which
-# face up at the initial pose (palm up, fingers straight, pads at z = 0.144). With the default
-# action_scale, uniformly random actions touch it in ~40 % of episodes and succeed in ~2 %, while
-# flexing the wrist and the index knuckle together presses it with > 5 N in 16 steps.
-BLOCK_POS = (1.0, 0.785, 0.21)
-SUITE = containers.TaggedTasks()
+# Block centre (world frame), matching assets.BLOCK_QUAT: the plate lies flat on the distal pads
+# of the first three fingers when their knuckles (J2) are flexed by 0.75 rad. With the default
+# action_scale, uniformly random actions touch it in ~30 % of episodes and press it with > 5 N in
+# ~2 %, while flexing one knuckle (action +1 on A_FFJ2, A_MFJ2 or A_RFJ2) succeeds in ~38 steps.
+BLOCK_POS = (1.0, 0.8124, 0.2111)
 
 
 class HandPhysics(Physics):

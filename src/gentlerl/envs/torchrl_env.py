@@ -37,7 +37,6 @@ class HandEnv(EnvBase):
         self,
         dm_env: control.Environment,
         *,
-        time_limit: int,
         device: str | torch.device = "cpu",
         from_pixels: bool = False,
         pixel_size: int = 84,
@@ -46,7 +45,6 @@ class HandEnv(EnvBase):
         self.dm_env = dm_env
         self.from_pixels = from_pixels
         self.pixel_size = pixel_size
-        self.time_limit = time_limit  # control steps, as given to make_dm_env
         obs = {
             keys.JOINT_POS: Unbounded((24,), device=device),
             keys.JOINT_VEL: Unbounded((24,), device=device),
