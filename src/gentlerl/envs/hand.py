@@ -7,11 +7,14 @@ ctrl range, added to the current position targets, clipped to the ctrl ranges.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 from dm_control.mujoco import Physics
 from dm_control.suite import base
 from dm_env import specs
 
+from gentlerl import keys
 from gentlerl.envs.assets import CHANNELS, FINGERTIPS, GRID, TOUCH_SITES
 
 CONTROL_TIMESTEP = 0.05  # 20 Hz
@@ -22,40 +25,58 @@ CONTROL_TIMESTEP = 0.05  # 20 Hz
 BLOCK_POS = (1.0, 0.8124, 0.2111)
 
 
+# Layout of the float32 observation buffer a task fills each step (one allocation per step):
+# joint_pos [24] | joint_vel [24] | touch [5, 3] | touch_grid [5, 3, 4, 4]. The first 63 values are
+# the flat ``observation`` the learner reads.
+N_JOINTS = 24
+N_TOUCH = len(TOUCH_SITES) * CHANNELS
+N_GRID = N_TOUCH * GRID[0] * GRID[1]
+OBS_SLICES = {
+    keys.JOINT_POS: (slice(0, N_JOINTS), (N_JOINTS,)),
+    keys.JOINT_VEL: (slice(N_JOINTS, 2 * N_JOINTS), (N_JOINTS,)),
+    keys.TOUCH: (slice(2 * N_JOINTS, 2 * N_JOINTS + N_TOUCH), (len(TOUCH_SITES), CHANNELS)),
+    keys.TOUCH_GRID: (slice(2 * N_JOINTS + N_TOUCH, None), (len(TOUCH_SITES), CHANNELS, *GRID)),
+}
+FLAT_SIZE = 2 * N_JOINTS + N_TOUCH  # 63
+OBS_SIZE = FLAT_SIZE + N_GRID
+
+
 class HandPhysics(Physics):
     """Physics with named accessors for the observations (dm_control convention)."""
 
-    def joint_pos(self) -> np.ndarray:
-        return self.data.qpos[:24].copy()
+    @cached_property
+    def _tip_geoms(self) -> np.ndarray:
+        return np.array([self.model.geom(f"robot0:C_{f}distal").id for f in FINGERTIPS])
 
-    def joint_vel(self) -> np.ndarray:
-        return self.data.qvel[:24].copy()
+    @cached_property
+    def _block_geom(self) -> int:
+        return self.model.geom("block").id
+
+    def observation_buffer(self) -> np.ndarray:
+        """A fresh float32 ``[OBS_SIZE]`` buffer laid out as :data:`OBS_SLICES`."""
+        buf = np.empty(OBS_SIZE, dtype=np.float32)
+        buf[:N_JOINTS] = self.data.qpos[:N_JOINTS]
+        buf[N_JOINTS : 2 * N_JOINTS] = self.data.qvel[:N_JOINTS]
+        grid = self.data.sensordata[-N_GRID:]
+        buf[FLAT_SIZE:] = grid
+        np.abs(grid.reshape(N_TOUCH, -1)).sum(-1, out=buf[2 * N_JOINTS : FLAT_SIZE])
+        return buf
 
     def touch_grid(self) -> np.ndarray:
         """Raw touch grids ``[5, 3, 4, 4]`` (N): normal, then two tangential channels."""
-        return (
-            self.data.sensordata[-len(TOUCH_SITES) * CHANNELS * GRID[0] * GRID[1] :]
-            .reshape(len(TOUCH_SITES), CHANNELS, *GRID)
-            .copy()
-        )
-
-    def block_contact(self) -> np.ndarray:
-        """``[5]`` bool: whether each fingertip's distal phalanx touches the block."""
-        tips = [self.model.geom(f"robot0:C_{f}distal").id for f in FINGERTIPS]
-        block = self.model.geom("block").id
-        touching = np.zeros(len(tips), dtype=bool)
-        contact = self.data.contact
-        for g1, g2 in zip(
-            contact.geom1[: self.data.ncon], contact.geom2[: self.data.ncon], strict=True
-        ):
-            other = g2 if g1 == block else g1 if g2 == block else None
-            if other is not None and other in tips:
-                touching[tips.index(other)] = True
-        return touching
+        return self.data.sensordata[-N_GRID:].reshape(OBS_SLICES[keys.TOUCH_GRID][1]).copy()
 
     def touch(self) -> np.ndarray:
         """Per fingertip and channel, the sum of |value| over the 4x4 grid: ``[5, 3]`` (N)."""
         return np.abs(self.touch_grid()).sum(axis=(-2, -1))
+
+    def block_contact(self) -> np.ndarray:
+        """``[5]`` bool: whether each fingertip's distal phalanx touches the block."""
+        n = self.data.ncon
+        g1, g2 = self.data.contact.geom1[:n], self.data.contact.geom2[:n]
+        block = self._block_geom
+        others = np.concatenate([g2[g1 == block], g1[g2 == block]])
+        return np.isin(self._tip_geoms, others)
 
 
 def _check_non_negative(**values: float) -> None:
@@ -86,7 +107,8 @@ class Explore(base.Task):
         self.block_pos = np.asarray(block_pos, dtype=np.float64)
         if self.block_pos.shape != (3,):
             raise ValueError(f"block_pos must be (x, y, z), got {block_pos!r}")
-        self._previous_touch = np.zeros((len(TOUCH_SITES), CHANNELS))
+        self.buffer: np.ndarray | None = None  # float32 [OBS_SIZE], laid out as OBS_SLICES
+        self.observation: dict[str, np.ndarray] = {}
         self.success = False
         self.broken = False
 
@@ -102,7 +124,7 @@ class Explore(base.Task):
             if self.randomize_block:
                 offset[:2] = self.random.uniform(-self.block_range, self.block_range, size=2)
             physics.data.mocap_pos[block] = self.block_pos + offset
-        self._previous_touch = physics.touch()
+        self._observe(physics)
         self.success = self.broken = False
 
     def before_step(self, action: np.ndarray, physics: HandPhysics) -> None:
@@ -116,9 +138,20 @@ class Explore(base.Task):
         physics.data.ctrl[:] = np.clip(physics.data.ctrl + delta, low, high)
 
     def after_step(self, physics: HandPhysics) -> None:
-        touch = physics.touch()
-        self.update_outcome(touch, self._previous_touch, physics.block_contact())
-        self._previous_touch = touch
+        previous = self._observe(physics)
+        touch = self.observation[keys.TOUCH]
+        # Contacts are only looked up when a fingertip senses something (rare: keeps steps fast).
+        on_block = physics.block_contact() if touch.any() else np.zeros(len(touch), dtype=bool)
+        self.update_outcome(touch, previous, on_block)
+
+    def _observe(self, physics: HandPhysics) -> np.ndarray:
+        """Read this step's observations into :attr:`buffer`; return the previous ``touch``."""
+        previous = self.observation[keys.TOUCH] if self.buffer is not None else None
+        self.buffer = physics.observation_buffer()
+        self.observation = {
+            key: self.buffer[where].reshape(shape) for key, (where, shape) in OBS_SLICES.items()
+        }
+        return previous
 
     def update_outcome(self, touch: np.ndarray, previous: np.ndarray, on_block: np.ndarray) -> None:
         """Set :attr:`success` / :attr:`broken` for this step (nothing to do without a task).
@@ -132,13 +165,9 @@ class Explore(base.Task):
         return specs.BoundedArray((physics.model.nu,), np.float64, -1.0, 1.0, name="action")
 
     def get_observation(self, physics: HandPhysics) -> dict[str, np.ndarray]:
-        grid = physics.touch_grid()
-        return {
-            "joint_pos": physics.joint_pos(),
-            "joint_vel": physics.joint_vel(),
-            "touch": np.abs(grid).sum(axis=(-2, -1)),
-            "touch_grid": grid,
-        }
+        """float32 ``joint_pos`` [24], ``joint_vel`` [24], ``touch`` [5, 3], ``touch_grid``
+        [5, 3, 4, 4]: views of :attr:`buffer`, read once per step in ``after_step``."""
+        return self.observation
 
     def get_reward(self, physics: HandPhysics) -> float:
         return 0.0

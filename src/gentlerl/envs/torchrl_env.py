@@ -16,9 +16,11 @@ from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.envs.assets import CHANNELS, GRID, TOUCH_SITES
+from gentlerl.envs.hand import FLAT_SIZE, OBS_SLICES
 from gentlerl.envs.rendering import render
 
 N_SITES = len(TOUCH_SITES)
+_SCALAR = torch.Size([])
 
 
 def _flag() -> Categorical:
@@ -61,21 +63,13 @@ class HandEnv(EnvBase):
         self.reward_spec = Unbounded((1,), device=device)
         self.full_done_spec = Composite(done=_flag(), terminated=_flag(), truncated=_flag())
 
-    def _observation(self, timestep: object) -> dict[str, torch.Tensor]:
-        o = timestep.observation
-        pos = torch.from_numpy(o["joint_pos"]).float()
-        vel = torch.from_numpy(o["joint_vel"]).float()
-        touch = torch.from_numpy(o["touch"]).float()
+    def _observation(self) -> dict[str, torch.Tensor]:
         task = self.dm_env.task
-        out = {
-            keys.JOINT_POS: pos,
-            keys.JOINT_VEL: vel,
-            keys.TOUCH: touch,
-            keys.TOUCH_GRID: torch.from_numpy(o["touch_grid"]).float(),
-            keys.OBSERVATION: torch.cat([pos, vel, touch.flatten()]),
-            keys.SUCCESS: torch.tensor([task.success]),
-            keys.BROKEN: torch.tensor([task.broken]),
-        }
+        buf = torch.from_numpy(task.buffer)  # float32, fresh each step: the views below own it
+        out = {key: buf[where].view(shape) for key, (where, shape) in OBS_SLICES.items()}
+        out[keys.OBSERVATION] = buf[:FLAT_SIZE].clone()  # not aliased with joint_pos & co.
+        flags = torch.tensor([task.success, task.broken])
+        out[keys.SUCCESS], out[keys.BROKEN] = flags[0:1], flags[1:2]
         if self.from_pixels:
             out[keys.PIXELS] = torch.from_numpy(self.render())
         return out
@@ -87,23 +81,19 @@ class HandEnv(EnvBase):
         )
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
-        return TensorDict(self._observation(self.dm_env.reset()), batch_size=[], device=self.device)
+        self.dm_env.reset()
+        return TensorDict._new_unsafe(self._observation(), batch_size=_SCALAR, device=self.device)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get(keys.ACTION)
-        if action.shape != (20,):
-            raise ValueError(f"action must have shape (20,), got {tuple(action.shape)}")
-        if not torch.isfinite(action).all():
-            raise ValueError(f"action must be finite, got {action}")
-        timestep = self.dm_env.step(action.detach().cpu().numpy())
-        out = self._observation(timestep)
+        # Shape and finiteness are checked by the task (ValueError naming the value).
+        timestep = self.dm_env.step(tensordict.get(keys.ACTION).detach().cpu().numpy())
+        out = self._observation()
         last = timestep.last()
         terminated = last and timestep.discount == 0.0
-        out[keys.REWARD] = torch.tensor([float(timestep.reward or 0.0)])
-        out[keys.TERMINATED] = torch.tensor([terminated])
-        out[keys.TRUNCATED] = torch.tensor([last and not terminated])
-        out[keys.DONE] = torch.tensor([last])
-        return TensorDict(out, batch_size=[], device=self.device)
+        done = torch.tensor([terminated, last and not terminated, last])
+        out[keys.TERMINATED], out[keys.TRUNCATED], out[keys.DONE] = done[0:1], done[1:2], done[2:3]
+        out[keys.REWARD] = torch.tensor([timestep.reward or 0.0], dtype=torch.float32)
+        return TensorDict._new_unsafe(out, batch_size=_SCALAR, device=self.device)
 
     def _set_seed(self, seed: int | None) -> None:
         self.dm_env.task._random = np.random.RandomState(seed)
