@@ -63,16 +63,19 @@ class HandEnv(EnvBase):
         self.reward_spec = Unbounded((1,), device=device)
         self.full_done_spec = Composite(done=_flag(), terminated=_flag(), truncated=_flag())
 
-    def _observation(self) -> dict[str, torch.Tensor]:
+    def _output(self, flags: dict[str, bool]) -> TensorDictBase:
+        """This step's tensordict: the task's float32 buffer as views, plus bool ``flags``."""
         task = self.dm_env.task
         buf = torch.from_numpy(task.buffer)  # float32, fresh each step: the views below own it
         out = {key: buf[where].view(shape) for key, (where, shape) in OBS_SLICES.items()}
         out[keys.OBSERVATION] = buf[:FLAT_SIZE].clone()  # not aliased with joint_pos & co.
-        flags = torch.tensor([task.success, task.broken])
-        out[keys.SUCCESS], out[keys.BROKEN] = flags[0:1], flags[1:2]
+        flags = {keys.SUCCESS: task.success, keys.BROKEN: task.broken, **flags}
+        values = torch.tensor(list(flags.values()))  # one allocation for all [1] flags
+        out.update((key, values[i : i + 1]) for i, key in enumerate(flags))
         if self.from_pixels:
             out[keys.PIXELS] = torch.from_numpy(self.render())
-        return out
+        td = TensorDict._new_unsafe(out, batch_size=_SCALAR)
+        return td if self.device.type == "cpu" else td.to(self.device)
 
     def render(self, height: int | None = None, width: int | None = None) -> np.ndarray:
         """An RGB frame ``[H, W, 3]`` from the side camera (needs an OpenGL backend)."""
@@ -82,18 +85,25 @@ class HandEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         self.dm_env.reset()
-        return TensorDict._new_unsafe(self._observation(), batch_size=_SCALAR, device=self.device)
+        return self._output({})
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         # Shape and finiteness are checked by the task (ValueError naming the value).
         timestep = self.dm_env.step(tensordict.get(keys.ACTION).detach().cpu().numpy())
-        out = self._observation()
         last = timestep.last()
         terminated = last and timestep.discount == 0.0
-        done = torch.tensor([terminated, last and not terminated, last])
-        out[keys.TERMINATED], out[keys.TRUNCATED], out[keys.DONE] = done[0:1], done[1:2], done[2:3]
-        out[keys.REWARD] = torch.tensor([timestep.reward or 0.0], dtype=torch.float32)
-        return TensorDict._new_unsafe(out, batch_size=_SCALAR, device=self.device)
+        done = {
+            keys.TERMINATED: terminated,
+            keys.TRUNCATED: last and not terminated,
+            keys.DONE: last,
+        }
+        td = self._output(done)
+        td.set(keys.REWARD, torch.tensor([timestep.reward or 0.0], dtype=torch.float32))
+        return td
+
+    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        """``_step`` already writes every done key and a ``[1]`` reward: skip the generic fix-ups."""
+        return next_tensordict
 
     def _set_seed(self, seed: int | None) -> None:
         self.dm_env.task._random = np.random.RandomState(seed)
