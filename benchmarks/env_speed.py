@@ -4,13 +4,14 @@ Each control step is ``n_sub_steps`` = 25 MuJoCo steps of 2 ms (50 ms, 20 Hz). R
 raw physics (the same 25 sub-steps and random delta-position control, nothing else), the dm_control
 environment, the TorchRL env (``env.step`` on a reused tensordict; and with ``step_mdp`` as a\nhand-written loop would), its
 ``rollout``, and a 2-worker ``ParallelEnv`` (total steps/s). The ``explore`` task is used so that
-no episode ends early. Run: ``python benchmarks/env_speed.py [--steps 2000] [--markdown]``.
+no episode ends early. It also measures how often uniformly random actions touch the block,\nsucceed or break it. Run: ``python benchmarks/env_speed.py [--steps 3000] [--episodes 100]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import numpy as np
 import torch
@@ -21,14 +22,40 @@ from gentlerl import keys
 from gentlerl.envs import make_dm_env, make_env
 
 
-def _rate(fn, steps: int) -> float:
-    fn(min(steps, 50))  # warm-up
-    start = time.perf_counter()
-    fn(steps)
-    return steps / (time.perf_counter() - start)
+def _rates(runs: dict[str, tuple[Callable[[int], None], int]], steps: int, repeats: int = 5):
+    """Control steps/s of each ``run(n)`` (``factor`` env steps per ``n``), best of ``repeats``
+    interleaved blocks: the CPU is shared, so every contender sees the same background load and
+    the least disturbed block counts, as with ``timeit``."""
+    block = max(1, steps // repeats)
+    best = dict.fromkeys(runs, 0.0)
+    for run, _ in runs.values():
+        run(50)  # warm-up
+    for _ in range(repeats):
+        for name, (run, factor) in runs.items():
+            start = time.perf_counter()
+            run(block // factor)
+            best[name] = max(best[name], block // factor * factor / (time.perf_counter() - start))
+    return best
 
 
-def raw_physics(steps: int) -> float:
+def random_policy_outcomes(task: str, episodes: int) -> dict[str, float]:
+    """Fractions of uniformly random episodes that touch the block / succeed / break it."""
+    rng = np.random.default_rng(0)
+    counts = {"contact": 0, "success": 0, "broken": 0}
+    for episode in range(episodes):
+        env = make_dm_env(task, seed=episode)
+        ts, contact = env.reset(), False
+        while not ts.last():
+            ts = env.step(rng.uniform(-1, 1, 20))
+            contact = contact or bool(env.physics.block_contact().any())
+        counts["contact"] += contact
+        counts["success"] += env.task.success
+        counts["broken"] += env.task.broken
+    return {key: value / episodes for key, value in counts.items()}
+
+
+def raw_physics() -> Callable[[int], None]:
+    """The same 25 sub-steps and delta-position control, with nothing else around them."""
     env = make_dm_env("explore", seed=0, time_limit=10**9)
     env.reset()
     physics, n_sub = env.physics, env._n_sub_steps
@@ -36,17 +63,16 @@ def raw_physics(steps: int) -> float:
     step = env.task.action_scale * (high - low)
     rng = np.random.default_rng(0)
 
-    def run(n):  # the same delta-position control, with nothing else around it
+    def run(n):
         for _ in range(n):
-            physics.data.ctrl[:] = np.clip(
-                physics.data.ctrl + rng.uniform(-1, 1, 20) * step, low, high
-            )
+            ctrl = physics.data.ctrl + rng.uniform(-1, 1, 20) * step
+            physics.data.ctrl[:] = np.clip(ctrl, low, high)
             physics.step(n_sub)
 
-    return _rate(run, steps)
+    return run
 
 
-def dm_control_env(steps: int) -> float:
+def dm_control_env() -> Callable[[int], None]:
     env = make_dm_env("explore", seed=0, time_limit=10**9)
     env.reset()
     rng = np.random.default_rng(0)
@@ -55,38 +81,28 @@ def dm_control_env(steps: int) -> float:
         for _ in range(n):
             env.step(rng.uniform(-1, 1, 20))
 
-    return _rate(run, steps)
+    return run
 
 
-def torchrl_step(steps: int, *, with_step_mdp: bool) -> float:
+def torchrl_step(*, with_step_mdp: bool) -> Callable[[int], None]:
     env = make_env("explore", seed=0, time_limit=10**9)
     td = env.reset()
-    torch.manual_seed(0)
+    rng = np.random.default_rng(0)  # the same actions as above
 
     def run(n):
         nonlocal td
         for _ in range(n):
-            td.set(keys.ACTION, torch.rand(20) * 2 - 1)
+            td.set(keys.ACTION, torch.from_numpy(rng.uniform(-1, 1, 20)).float())
             td = env.step(td)
             if with_step_mdp:
                 td = step_mdp(td, keep_other=False)
 
-    return _rate(run, steps)
+    return run
 
 
-def torchrl_rollout(steps: int) -> float:
+def torchrl_rollout() -> Callable[[int], None]:
     env = make_env("explore", seed=0, time_limit=10**9)
-    return _rate(lambda n: env.rollout(n, break_when_any_done=False), steps)
-
-
-def parallel(steps: int, workers: int = 2) -> float:
-    env = ParallelEnv(workers, _make_explore)
-    try:
-        return workers * _rate(
-            lambda n: env.rollout(n, break_when_any_done=False), steps // workers
-        )
-    finally:
-        env.close()
+    return lambda n: env.rollout(n, break_when_any_done=False)
 
 
 def _make_explore():
@@ -95,19 +111,30 @@ def _make_explore():
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--episodes", type=int, default=100, help="random-policy episodes")
     parser.add_argument("--markdown", action="store_true", help="print a RESULTS.md table")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    raw = raw_physics(args.steps)
-    rows = [
-        ("raw physics.step (25 sub-steps)", raw),
-        ("dm_control Environment.step", dm_control_env(args.steps)),
-        ("TorchRL HandEnv.step", torchrl_step(args.steps, with_step_mdp=False)),
-        ("TorchRL HandEnv.step + step_mdp", torchrl_step(args.steps, with_step_mdp=True)),
-        ("TorchRL HandEnv.rollout", torchrl_rollout(args.steps)),
-        ("ParallelEnv, 2 workers (total)", parallel(args.steps)),
-    ]
+    workers = 2
+    parallel = ParallelEnv(workers, _make_explore)
+    runs = {
+        "raw physics.step (25 sub-steps)": (raw_physics(), 1),
+        "dm_control Environment.step": (dm_control_env(), 1),
+        "TorchRL HandEnv.step": (torchrl_step(with_step_mdp=False), 1),
+        "TorchRL HandEnv.step + step_mdp": (torchrl_step(with_step_mdp=True), 1),
+        "TorchRL HandEnv.rollout": (torchrl_rollout(), 1),
+        f"ParallelEnv, {workers} workers (total)": (
+            lambda n: parallel.rollout(n, break_when_any_done=False),
+            workers,
+        ),
+    }
+    try:
+        rates = _rates(runs, args.steps)
+    finally:
+        parallel.close()
+    raw = rates["raw physics.step (25 sub-steps)"]
+    rows = list(rates.items())
     if args.markdown:
         print("| what | control steps/s | × raw |\n| --- | ---: | ---: |")
     for name, rate in rows:
@@ -115,6 +142,10 @@ def main() -> None:
             print(f"| {name} | {rate:,.0f} | {rate / raw:.2f} |")
         else:
             print(f"{name:34s} {rate:9.0f} steps/s  {rate / raw:5.2f} x raw")
+    if args.episodes:
+        print(f"\nuniformly random actions, {args.episodes} episodes of <= 200 steps:")
+        for task in ("touch", "fragile"):
+            print(task, random_policy_outcomes(task, args.episodes))
 
 
 if __name__ == "__main__":
