@@ -109,7 +109,7 @@ def scene_xml(fov_deg: float = 90.0, actuator_gain: float = 3.0) -> str:
   <asset>{shared_asset}</asset>
   <worldbody>
     <light directional="true" ambient="0.2 0.2 0.2" diffuse="0.8 0.8 0.8" pos="0 0 4" dir="0 0 -1"/>
-    <camera name="side" pos="1.0 0.75 0.45" xyaxes="1 0 0 0 0.6 0.8" fovy="45"/>
+    <camera name="side" pos="1.0 0.55 0.40" xyaxes="1 0 0 0 0.6 0.8" fovy="45"/>
     {robot}
     <body name="block" mocap="true" pos="1 0.8124 0.2111" quat="{BLOCK_QUAT}">
       <geom name="block" type="box" size="0.045 0.012 0.01" rgba="0.9 0.7 0.3 1"

@@ -44,8 +44,9 @@ def render(physics: object, height: int, width: int, camera_id: int | str = 0) -
     if height < 1 or width < 1:
         raise ValueError(f"render size must be positive, got {height}x{width}")
     try:
-        return physics.render(height=height, width=width, camera_id=camera_id)
+        frame = physics.render(height=height, width=width, camera_id=camera_id)
     except RuntimeError as err:
         if "No OpenGL rendering backend" in str(err):
             raise RuntimeError(f"no OpenGL backend to render with: {INSTALL_HINT}") from err
         raise
+    return np.ascontiguousarray(frame)  # dm_control flips rows with a negative-stride view
