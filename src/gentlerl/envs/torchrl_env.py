@@ -32,7 +32,9 @@ class HandEnv(EnvBase):
 
     Writes float32 ``joint_pos`` [24], ``joint_vel`` [24], ``touch`` [5, 3], ``touch_grid``
     [5, 3, 4, 4], ``observation`` [63] (joint_pos, joint_vel, flattened touch), bool ``success`` /
-    ``broken`` [1], ``reward`` [1]; the time limit is reported as ``truncated``.
+    ``broken`` [1], ``reward`` [1]; the time limit is reported as ``truncated``, success and a
+    broken block as ``terminated``. ``joint_pos`` ... ``touch_grid`` of one step are views of one
+    fresh float32 buffer (one allocation per step); ``observation`` is a copy of its first 63 values.
     """
 
     def __init__(
