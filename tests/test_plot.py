@@ -1,0 +1,66 @@
+"""Figures from run directories in the training loop's layout (synthetic logs with known numbers)."""
+
+import numpy as np
+import pytest
+import yaml
+
+from gentlerl.plot import find_runs, main, max_impacts, seed_band, summary_table
+
+
+def _fake_run(root, variant, seed, lam2, success, impacts):
+    run = root / f"{variant}-{lam2}" / f"seed{seed}"
+    scalars = run / "logs" / "scalars"
+    (scalars / "eval").mkdir(parents=True)
+    (scalars / "episode").mkdir()
+    (scalars / "train").mkdir()
+    config = dict(task="touch", variant=variant, seed=seed, lam_prime=[2.0, lam2])
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    (scalars / "eval" / "success_rate.csv").write_text(
+        "".join(f"{f},{s}\n" for f, s in zip((1000, 2000, 3000), success, strict=True))
+    )
+    (scalars / "eval" / "return.csv").write_text("1000,0\n2000,0.5\n3000,1\n")
+    (scalars / "episode" / "max_impact.csv").write_text(
+        "".join(f"{200 * (i + 1)},{m}\n" for i, m in enumerate(impacts))
+    )
+    (scalars / "train" / "batch_reward.csv").write_text("1000,0.0\n2000,0.1\n")
+    (scalars / "train" / "intrinsic_on.csv").write_text("1000,0\n1500,1\n2000,1\n")
+    return run
+
+
+def test_seeds_are_grouped_and_summarised(tmp_path):
+    _fake_run(tmp_path, "r+rf+rsp", 0, 2.0, (0.0, 0.5, 1.0), [0.0, 1.0, 3.0])
+    _fake_run(tmp_path, "r+rf+rsp", 1, 2.0, (0.0, 0.5, 0.5), [2.0, 0.0])
+    _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [5.0])
+    runs = find_runs([tmp_path])
+    rows = {r["variant"]: r for r in summary_table(runs)}
+    assert rows["r+rf+rsp (λ'₂=2)"]["seeds"] == 2
+    assert rows["r+rf+rsp (λ'₂=2)"]["final_success"] == pytest.approx(0.75)  # mean of 1.0 and 0.5
+    # zero-impact rollouts are ignored: (1 + 3 + 2) / 3 = 2.0
+    assert rows["r+rf+rsp (λ'₂=2)"]["mean_max_impact"] == pytest.approx(2.0)
+    assert rows["r"]["seeds"] == 1 and rows["r"]["mean_max_impact"] == 5.0
+    assert sorted(max_impacts(runs).tolist()) == [1.0, 2.0, 3.0, 5.0]
+
+
+def test_seed_band_interpolates_on_a_common_grid():
+    a = (np.array([0.0, 10.0]), np.array([0.0, 1.0]))
+    b = (np.array([0.0, 10.0]), np.array([1.0, 1.0]))
+    grid, mean, low, high = seed_band([a, b], points=3)
+    assert grid.tolist() == [0.0, 5.0, 10.0]
+    assert mean.tolist() == [0.5, 0.75, 1.0]
+    assert low.tolist() == [0.0, 0.5, 1.0] and high.tolist() == [1.0, 1.0, 1.0]
+
+
+def test_cli_writes_the_three_figures_and_a_summary(tmp_path):
+    _fake_run(tmp_path / "runs", "r+rf+rsp", 0, 3.0, (0.0, 0.5, 1.0), [1.0, 4.0])
+    out = tmp_path / "figs"
+    main([str(tmp_path / "runs"), "-o", str(out)])
+    for name in ("impact_histograms.png", "learning_curves.png", "reward_components.png"):
+        assert (out / name).stat().st_size > 5_000  # a real image, not an empty canvas
+    assert "r+rf+rsp" in (out / "summary.csv").read_text()
+
+
+def test_missing_runs_are_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no run directories"):
+        find_runs([tmp_path])
+    with pytest.raises(FileNotFoundError, match="no such run directory"):
+        find_runs([tmp_path / "nope"])
