@@ -87,7 +87,7 @@ def test_trainer_state_round_trip(tmp_path):
     obs = TensorDict({"observation": torch.randn(7, 63)}, [7])
     assert torch.equal(actor(obs.clone())["action"], run.learner.actor(obs.clone())["action"])
     # The pending n-step tail (the last 5 steps) comes back with its last step cut (truncated).
-    tail = resumed._nstep()._buffer
+    (tail,) = resumed.nstep_tails
     assert tail.shape == (5,) and tail["next", "truncated"][:, 0].tolist() == [0, 0, 0, 0, 1]
 
 

@@ -187,3 +187,17 @@ def test_learns_the_toy_press_task(tmp_path):
     cfg = tiny_config(tmp_path, variant="r", total_frames=4000, eval_every_frames=4000)
     summary = train(cfg, toy_env)
     assert summary["success_rate"] == 1.0
+
+
+def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
+    cfg = tiny_config(tmp_path, collector="multi", num_workers=2, total_frames=400, eval_episodes=1)
+    trainer = Trainer(cfg, toy_env)
+    trainer.run()
+    # Batches are [2 workers, 50 steps]; each worker's row keeps its last 5 steps pending.
+    assert trainer.counters["frames"] == 400 and trainer.counters["updates"] == 100
+    assert len(trainer.model_rb) == 400 and len(trainer.rb) == 400 - 2 * 5
+    # n-step windows never mix workers: the toy env's joint position moves by at most 0.1 per
+    # step, so n = steps_to_next_obs <= 5 steps can move it by at most 0.5.
+    data = trainer.rb[:]
+    jump = (data["next", "observation"][:, :20] - data["observation"][:, :20]).abs().amax(-1)
+    assert (jump <= 0.1 * data["steps_to_next_obs"].squeeze(-1) + 1e-5).all()

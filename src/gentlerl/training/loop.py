@@ -93,6 +93,7 @@ class Trainer:
         self.total_updates = int(cfg.utd_ratio * max(cfg.total_frames - cfg.init_random_frames, 0))
         self.rb, self.beta_schedule, self.model_rb = make_buffers(cfg, self.total_updates)
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
+        self.nstep_tails: list[TensorDictBase | None] = []  # one per env (collector row)
         self.eval_history: list[dict[str, float]] = []
 
     # -- state ---------------------------------------------------------------------------
@@ -109,7 +110,7 @@ class Trainer:
             "stack": self.stack.state_dict(),
             "model_optims": {k: o.state_dict() for k, o in self.model_optims.items()},
             "rb": replay_buffer_state(self.rb),
-            "nstep_tail": self._nstep()._buffer,
+            "nstep_tails": list(self.nstep_tails),
             "model_rb": replay_buffer_state(self.model_rb),
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
@@ -126,7 +127,7 @@ class Trainer:
         for k, o in self.model_optims.items():
             o.load_state_dict(state["model_optims"][k])
         load_replay_buffer_state(self.rb, state["rb"])
-        self._nstep()._buffer = _cut(state["nstep_tail"])
+        self.nstep_tails = [_cut(tail) for tail in state["nstep_tails"]]
         load_replay_buffer_state(self.model_rb, state["model_rb"])
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
@@ -134,8 +135,20 @@ class Trainer:
         self.eval_history = list(state["eval_history"])
         _set_rng_state(state["rng"])
 
-    def _nstep(self) -> MultiStepTransform:
-        return next(t for t in self.rb.transform if isinstance(t, MultiStepTransform))
+    def _extend_agent_buffer(self, batch: TensorDictBase) -> None:
+        """Write each env's time row through the n-step transform with that env's pending tail.
+
+        ``MultiStepTransform`` keeps one tail of pending steps and the storage is flat, so a
+        ``[num_workers, T]`` batch is written row by row, swapping the tails.
+        """
+        nstep = next(t for t in self.rb.transform if isinstance(t, MultiStepTransform))
+        rows = batch.unbind(0) if batch.ndim == 2 else (batch,)
+        if len(self.nstep_tails) != len(rows):
+            self.nstep_tails = [None] * len(rows)
+        for i, row in enumerate(rows):
+            nstep._buffer = self.nstep_tails[i]
+            self.rb.extend(row)
+            self.nstep_tails[i] = nstep._buffer
 
     def save(self) -> None:
         save_checkpoint(self.run_dir / CHECKPOINT, self.state_dict())
@@ -226,7 +239,9 @@ class Trainer:
             self.model_rb.extend(
                 batch.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID), "collector").reshape(-1)
             )
-            self.rb.extend(batch.select(*AGENT_KEYS, *[("next", k) for k in cfg.reward_keys]))
+            self._extend_agent_buffer(
+                batch.select(*AGENT_KEYS, *[("next", k) for k in cfg.reward_keys])
+            )
             if c["frames"] > cfg.init_random_frames and len(self.rb) >= cfg.batch_size:
                 c["update_credit"] += cfg.utd_ratio * batch.numel()
                 while c["update_credit"] >= 1:
