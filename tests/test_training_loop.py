@@ -201,3 +201,11 @@ def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
     data = trainer.rb[:]
     jump = (data["next", "observation"][:, :20] - data["observation"][:, :20]).abs().amax(-1)
     assert (jump <= 0.1 * data["steps_to_next_obs"].squeeze(-1) + 1e-5).all()
+
+
+def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
+    monkeypatch.setenv("WANDB_SILENT", "true")
+    assert make_config().wandb_mode == "offline"
+    train(tiny_config(tmp_path, wandb_mode="offline", total_frames=300, eval_episodes=1), toy_env)
+    (run,) = (tmp_path / "wandb").glob("offline-run-*")
+    assert list(run.glob("*.wandb"))  # the run's records, ready for `wandb sync`

@@ -48,6 +48,11 @@ class RunLogger:
             for name, value in scalars.items():
                 logger.log_scalar(name, float(value), step=step)
 
+    def close(self) -> None:
+        """Finish the wandb run (its offline files are complete afterwards)."""
+        for logger in self.loggers[1:]:
+            logger.experiment.finish()
+
     def truncate_after(self, frames: int) -> None:
         """Drop rows logged after ``frames`` (a resumed run re-collects them; no duplicated steps)."""
         for path in [

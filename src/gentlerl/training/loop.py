@@ -211,6 +211,7 @@ class Trainer:
         summary = self._evaluate(logger, eval_env)
         self.save()
         (self.run_dir / DONE_MARKER).write_text("done\n")
+        logger.close()
         eval_env.close()
         return summary
 
