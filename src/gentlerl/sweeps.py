@@ -1,0 +1,134 @@
+"""Run a wandb sweep file's grid locally, without a wandb server.
+
+    python -m gentlerl.sweeps recipes/sweeps/fig4_touch.yaml --workers 2 --out runs/sweeps
+
+Each grid point becomes one ``python recipes/train.py key=value ...`` process with a
+deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resumable: a run whose
+``DONE`` marker exists is skipped, one with a checkpoint is continued (``resume=true``). Grid points
+that differ only in ``lam_prime`` for a variant without penalty surprise are run once (the
+parameter does not affect them). The same files work with ``wandb sweep`` / ``wandb agent``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import subprocess
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gentlerl.training.loop import DONE_MARKER
+
+TRAIN_SCRIPT = Path(__file__).resolve().parents[2] / "recipes" / "train.py"
+
+
+@dataclass(frozen=True)
+class GridRun:
+    overrides: tuple[tuple[str, Any], ...]
+    run_dir: Path
+
+    def command(self, extra: Sequence[str] = ()) -> list[str]:
+        args = [f"{k}={_format(v)}" for k, v in self.overrides]
+        return [sys.executable, str(TRAIN_SCRIPT), *args, *extra, f"run_dir={self.run_dir}"]
+
+
+def _format(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(_format(v) for v in value) + "]"
+    return str(value)
+
+
+def _slug(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return "-".join(_slug(v) for v in value)
+    return str(value)
+
+
+def load_sweep(path: str | Path) -> dict[str, list[Any]]:
+    """``parameters`` of a wandb grid sweep file as name -> list of values."""
+    spec = yaml.safe_load(Path(path).read_text())
+    if spec.get("method", "grid") != "grid":
+        raise ValueError(f"{path}: only grid sweeps run locally, got method={spec.get('method')!r}")
+    grid = {}
+    for name, param in (spec.get("parameters") or {}).items():
+        if "values" in param:
+            grid[name] = list(param["values"])
+        elif "value" in param:
+            grid[name] = [param["value"]]
+        else:
+            raise ValueError(f"{path}: parameter {name!r} needs `values:` or `value:`, got {param}")
+    if not grid:
+        raise ValueError(f"{path}: no parameters")
+    return grid
+
+
+def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
+    """Every grid point (lam_prime dropped where the variant has no penalty surprise), deduplicated."""
+    runs, seen = [], set()
+    names = list(grid)
+    for values in itertools.product(*(grid[n] for n in names)):
+        point = dict(zip(names, values, strict=True))
+        if "rsp" not in str(point.get("variant", "rsp")):
+            point.pop("lam_prime", None)
+        key = tuple(point.items())
+        if repr(key) in seen:
+            continue
+        seen.add(repr(key))
+        # No commas, brackets or '=' in the directory name: hydra would parse them in run_dir=...
+        name = "_".join(f"{k}-{_slug(v)}" for k, v in key)
+        runs.append(GridRun(key, out / name))
+    return runs
+
+
+def run_grid(
+    runs: Sequence[GridRun], workers: int = 1, extra: Sequence[str] = (), dry_run: bool = False
+) -> dict[str, int]:
+    """Run (or, ``dry_run``, print) the grid; counts ``done``/``skipped``/``failed``/``planned``."""
+    todo = [r for r in runs if not (r.run_dir / DONE_MARKER).exists()]
+    counts = {"skipped": len(runs) - len(todo), "done": 0, "failed": 0, "planned": 0}
+
+    def one(run: GridRun) -> int:
+        resume = ["resume=true"] if (run.run_dir / "checkpoint.pt").exists() else []
+        command = run.command([*extra, *resume])
+        print(" ".join(command), flush=True)
+        if dry_run:
+            return 0
+        run.run_dir.mkdir(parents=True, exist_ok=True)
+        with (run.run_dir / "stdout.log").open("a") as log:
+            return subprocess.call(command, stdout=log, stderr=subprocess.STDOUT)
+
+    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+        for code in pool.map(one, todo):
+            counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
+    return counts
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m gentlerl.sweeps", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument("sweep", help="a wandb grid sweep YAML (recipes/sweeps/*.yaml)")
+    parser.add_argument("--out", default="runs/sweeps", help="root folder of the run directories")
+    parser.add_argument("--workers", type=int, default=1, help="runs in parallel")
+    parser.add_argument("--scale", default=None, help="cpu or paper (added as scale=...)")
+    parser.add_argument(
+        "--set", action="append", default=[], help="extra override, e.g. total_frames=30000"
+    )
+    parser.add_argument("--dry-run", action="store_true", help="print the commands only")
+    args = parser.parse_args(argv)
+    grid = load_sweep(args.sweep)
+    runs = expand(grid, Path(args.out) / Path(args.sweep).stem)
+    extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
+    counts = run_grid(runs, args.workers, extra, args.dry_run)
+    print(f"{len(runs)} runs: {counts}")
+    return 1 if counts["failed"] else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

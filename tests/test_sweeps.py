@@ -1,0 +1,61 @@
+"""Local sweep runner: grid expansion, resumability, and one real (tiny) recipe run."""
+
+from pathlib import Path
+
+import pytest
+
+from gentlerl.sweeps import expand, load_sweep, main, run_grid
+
+SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
+TINY = [
+    "total_frames=300", "init_random_frames=200", "frames_per_batch=100", "batch_size=16",
+    "eval_episodes=1", "eval_every_frames=300", "checkpoint_every_frames=300", "wandb_mode=disabled",
+    "progress=false", "actor_hidden=[16]", "critic_hidden=[16]", "model_hidden=8",
+]  # fmt: skip
+
+
+def test_paper_sweeps_expand_to_the_expected_grids(tmp_path):
+    # touch / fragile: 4 variants without penalty surprise + r+rf+rsp x 3 lambda'_2, x 3 seeds.
+    for name, n in (("fig4_touch", 21), ("fig4_fragile", 21), ("fig3_noreward_impacts", 15)):
+        runs = expand(load_sweep(SWEEPS / f"{name}.yaml"), tmp_path)
+        assert len(runs) == n
+        assert len({r.run_dir for r in runs}) == n
+    names = [r.run_dir.name for r in expand(load_sweep(SWEEPS / "fig4_touch.yaml"), tmp_path)]
+    assert "task-touch_variant-r+rf+rsp_lam_prime-2-1.5_seed-0" in names
+    assert all("," not in n and "=" not in n and "[" not in n for n in names)
+
+
+def test_bad_sweep_files_are_clear_errors(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("method: random\nparameters: {seed: {values: [0]}}\n")
+    with pytest.raises(ValueError, match="only grid sweeps"):
+        load_sweep(bad)
+    bad.write_text("method: grid\nparameters: {seed: {min: 0}}\n")
+    with pytest.raises(ValueError, match="needs `values:`"):
+        load_sweep(bad)
+
+
+def test_finished_runs_are_skipped_and_checkpointed_ones_resumed(tmp_path, monkeypatch):
+    runs = expand({"variant": ["r", "r+rf+rsp"], "seed": [0]}, tmp_path)
+    (runs[0].run_dir).mkdir(parents=True)
+    (runs[0].run_dir / "DONE").write_text("done\n")
+    (runs[1].run_dir).mkdir(parents=True)
+    (runs[1].run_dir / "checkpoint.pt").write_bytes(b"x")
+    calls = []
+    monkeypatch.setattr("gentlerl.sweeps.subprocess.call", lambda cmd, **kw: calls.append(cmd) or 0)
+    counts = run_grid(runs, workers=2)
+    assert counts == {"skipped": 1, "done": 1, "failed": 0, "planned": 0}
+    assert len(calls) == 1 and "resume=true" in calls[0] and "variant=r+rf+rsp" in calls[0]
+
+
+def test_a_real_tiny_grid_runs_the_recipe_and_then_skips_it(tmp_path):
+    sweep = tmp_path / "tiny.yaml"
+    sweep.write_text("method: grid\nparameters:\n  variant: {values: [r+rf+rsp]}\n"
+                     "  lam_prime: {values: [[2, 1.5]]}\n  seed: {values: [0]}\n")  # fmt: skip
+    args = [str(sweep), "--out", str(tmp_path / "runs"), *sum((["--set", o] for o in TINY), [])]
+    assert main(args) == 0
+    run = tmp_path / "runs" / "tiny" / "variant-r+rf+rsp_lam_prime-2-1.5_seed-0"
+    assert (run / "DONE").exists() and (run / "eval_episodes.csv").exists()
+    assert "lam_prime:\n- 2.0\n- 1.5" in (run / "config.yaml").read_text()
+    assert main(args) == 0  # second time: skipped, nothing re-run
+    assert (run / "stdout.log").read_text().count("success_rate=") == 1
