@@ -197,3 +197,34 @@ def test_state_dict_round_trip():
         a.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
         b.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
     )
+
+
+@pytest.mark.parametrize("variant", ["r+rf+rsp", "r+rf+rs"])
+def test_transformed_hand_env_passes_check_env_specs(variant):
+    from gentlerl.envs import make_env
+
+    stack = make_reward_transforms(variant, reward_delay=0, hidden=16)
+    stack.step(0)
+    env = TransformedEnv(make_env("touch", seed=0), stack.transform)
+    check_env_specs(env)
+    rollout = env.rollout(5)
+    assert rollout["next", keys.IMPACT].shape == (5, 5)
+    assert rollout["next", stack.reward_keys[-1]].shape == (5, 1)
+    assert torch.isfinite(rollout["next", stack.reward_keys[-1]]).all()
+
+
+def test_impact_penalty_on_a_parallel_hand_env():
+    from functools import partial
+
+    from gentlerl.envs import make_env
+
+    env = TransformedEnv(
+        ParallelEnv(2, partial(make_env, "touch", seed=0), mp_start_method="fork"), ImpactPenalty()
+    )
+    try:
+        check_env_specs(env)
+        rollout = env.rollout(6)
+        assert rollout["next", keys.PENALTY].shape == (2, 6, 1)
+        assert (rollout["next", keys.PENALTY] <= 0).all()
+    finally:
+        env.close()
