@@ -2,6 +2,12 @@
 
 collect -> reward transforms -> buffers -> (model updates -> target copies / reward delay)
 -> D4PG update -> target update -> log -> evaluate -> checkpoint.
+
+Two replay buffers, both fed from every collected batch after the reward transforms: the
+agent's prioritised buffer holds *n-step* transitions (``MultiStepTransform`` rewrites
+``("next", obs)`` to s_{t+n} and sums every reward component), while the dynamics / penalty / ICM
+models learn from *1-step* transitions (s_t, a_t, s_{t+1}, r^f_t), kept in a uniform buffer.
+Updates start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
 """
 
 from __future__ import annotations
