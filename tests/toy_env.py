@@ -40,7 +40,7 @@ class ToyHandEnv(EnvBase):
         press = (pos[:5] - 0.5).clamp_min(0.0) * self.stiffness
         touch = torch.stack([press, 0.1 * press, 0.0 * press], -1)
         obs = torch.cat([pos, vel, touch.flatten()])
-        success = touch[:, 0].max().reshape(1) > 5.0  # "pressed with more than 5 N"
+        success = touch[0, :1] > 5.0  # fingertip 0 "pressed with more than 5 N"
         return {
             keys.JOINT_POS: pos,
             keys.JOINT_VEL: vel,
