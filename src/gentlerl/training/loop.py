@@ -237,6 +237,7 @@ class Trainer:
             total=cfg.total_frames, initial=c["frames"], disable=not cfg.progress, unit="frame"
         )
         start, start_frames = time.perf_counter(), c["frames"]
+        update_time = 0.0
         for batch in collector:
             batch = self.stack.transform(batch)
             c["frames"] += batch.numel()
@@ -251,6 +252,7 @@ class Trainer:
             )
             if c["frames"] > cfg.init_random_frames and len(self.rb) >= cfg.batch_size:
                 c["update_credit"] += cfg.utd_ratio * batch.numel()
+                update_start = time.perf_counter()
                 while c["update_credit"] >= 1:
                     c["update_credit"] -= 1
                     if self.stack.model_losses:
@@ -259,15 +261,18 @@ class Trainer:
                     for k, v in self._update_learner().items():
                         pending[k].append(v)
                     c["updates"] += 1
+                update_time += time.perf_counter() - update_start
                 if cfg.collector == "multi":
                     collector.update_policy_weights_()
             elapsed = time.perf_counter() - start
             if pending and len(pending["loss_value"]) >= cfg.log_every_updates:
                 scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
                 scalars["train/intrinsic_on"] = float(self.stack.intrinsic_on)
-                scalars["train/updates_per_s"] = len(pending["loss_value"]) / max(elapsed, 1e-9)
+                # Model + learner updates per second of update time (collection excluded).
+                scalars["train/updates_per_s"] = len(pending["loss_value"]) / max(update_time, 1e-9)
                 logger.log(scalars, c["frames"])
                 pending.clear()
+                update_time = 0.0
             fps = (c["frames"] - start_frames) / max(elapsed, 1e-9)
             logger.log({"train/env_steps_per_s": fps}, c["frames"])
             if c["frames"] >= next_eval:
