@@ -228,3 +228,28 @@ def test_impact_penalty_on_a_parallel_hand_env():
         assert (rollout["next", keys.PENALTY] <= 0).all()
     finally:
         env.close()
+
+
+def test_penalty_surprise_nll_floor_keeps_the_surprise_a_bonus():
+    # A well-predicted penalty has a negative NLL; eq. 8 then gives r^f + r^sp = a' nll + (1 - a') r^f
+    # below r^f. With nll_floor=0 the well-predicted case costs only (1 - a') r^f.
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3)
+    stack.step(0)
+    surprise = stack.transform[1]
+    batch = _pressing_rollout(ToyHandEnv())
+    stack.transform[0](batch)  # write the penalty first
+    mean, var = stack.model_losses["penalty"].predict_target(batch)
+    mu, s2 = mixture_moments(mean, var)
+    penalty = batch["next", keys.PENALTY]
+    # Make the target model "accurate": evaluate eq. 8 at nll = -3 by hand vs the floored version.
+    nll = torch.full_like(penalty, -3.0)
+    from gentlerl.functional import penalty_surprise
+
+    raw = penalty_surprise(penalty, nll, 2.0, 2.0)
+    floored = penalty_surprise(penalty, nll.clamp_min(0.0), 2.0, 2.0)
+    hit = penalty < 0
+    assert (raw[hit] < floored[hit]).all() and (floored[hit] >= 0).all()
+    surprise.nll_floor = 0.0
+    out = surprise(batch.clone())["next", keys.PENALTY_SURPRISE]
+    expected = penalty_surprise(penalty, gaussian_nll(penalty, mu, s2).clamp_min(0.0), 2.0, 2.0)
+    torch.testing.assert_close(out, expected)

@@ -80,6 +80,7 @@ def make_reward_stack(cfg: TrainConfig, obs_dim: int, action_dim: int) -> Reward
         ensemble_size=cfg.ensemble_size,
         hidden=cfg.model_hidden,
         surprise_scale=cfg.surprise_scale,
+        surprise_nll_floor=cfg.surprise_nll_floor,
         icm_eta=cfg.icm_eta,
         seed=cfg.seed,
     )

@@ -65,6 +65,8 @@ class TrainConfig:
     model_buffer_size: int = 100_000
     lr_model: float = 1e-3
     surprise_scale: float = 1.0
+    # Floor of the penalty-surprise NLL (None = the paper's eq. 8 as written; see PenaltySurprise).
+    surprise_nll_floor: float | None = None
     icm_eta: float = 1.0
     # Evaluation, logging, checkpoints.
     eval_every_frames: int = 5_000

@@ -118,6 +118,7 @@ def make_reward_transforms(
     ensemble_size: int = 5,
     hidden: int = 128,
     surprise_scale: float = 1.0,
+    surprise_nll_floor: float | None = None,
     icm_eta: float = 1.0,
     seed: int = 0,
 ) -> RewardStack:
@@ -154,7 +155,12 @@ def make_reward_transforms(
         losses["penalty"] = EnsembleModelLoss(model, name="penalty")
         periods["penalty"] = penalty_target_period
         transforms.append(
-            PenaltySurprise(losses["penalty"], lam_prime=lam_prime, scale=surprise_scale)
+            PenaltySurprise(
+                losses["penalty"],
+                lam_prime=lam_prime,
+                scale=surprise_scale,
+                nll_floor=surprise_nll_floor,
+            )
         )
     if keys.ICM_REWARD in reward_keys:
         with torch.random.fork_rng():

@@ -67,6 +67,10 @@ class PenaltySurprise(ModelRewardTransform):
         loss: the penalty model's loss (holds the model and its target copy).
         lam_prime: :math:`\lambda' = [\lambda'_1, \lambda'_2]` (paper: lambda'_1 = 2, lambda'_2 in 1..4).
         scale: multiplies the reward (1 = the paper's equation).
+        nll_floor: if set, the NLL is clamped from below at this value before eq. 8. The paper's
+            equation (``None``) makes a *well*-predicted small penalty cost ``a' * nll < 0``, so
+            once the penalty model is accurate, gentle contact is punished; a floor of 0 keeps the
+            surprise a bonus ("erroneous predictions deliver a small positive reward").
     """
 
     def __init__(
@@ -75,6 +79,7 @@ class PenaltySurprise(ModelRewardTransform):
         *,
         lam_prime: tuple[float, float] = (2.0, 2.0),
         scale: float = 1.0,
+        nll_floor: float | None = None,
         penalty_key: str = keys.PENALTY,
         out_key: str = keys.PENALTY_SURPRISE,
     ) -> None:
@@ -85,6 +90,7 @@ class PenaltySurprise(ModelRewardTransform):
         )
         self.penalty_key = penalty_key
         self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
+        self.nll_floor = nll_floor
 
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
@@ -97,4 +103,6 @@ class PenaltySurprise(ModelRewardTransform):
         mean, var = self.loss.predict_target(tensordict)
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         nll = gaussian_nll(penalty, mu, sigma2)
+        if self.nll_floor is not None:
+            nll = nll.clamp_min(self.nll_floor)
         return {self.out_keys[0]: self._gate(penalty_surprise(penalty, nll, *self.lam_prime))}
