@@ -66,7 +66,8 @@ class TrainConfig:
     lr_model: float = 1e-3
     surprise_scale: float = 1.0
     # Floor of the penalty-surprise NLL (None = the paper's eq. 8 as written; see PenaltySurprise).
-    surprise_nll_floor: float | None = None
+    # 0 at CPU scale: without it r+rf+rsp collapsed after each success (measured, see README).
+    surprise_nll_floor: float | None = 0.0
     icm_eta: float = 1.0
     # Evaluation, logging, checkpoints.
     eval_every_frames: int = 5_000
@@ -96,6 +97,7 @@ SCALES: dict[str, dict[str, Any]] = {
         "init_random_frames": 10_000,
         "v_min": -100.0,
         "v_max": 100.0,
+        "surprise_nll_floor": None,
         "batch_size": 256,
         "buffer_size": 1_000_000,
         "utd_ratio": 1.0,
