@@ -6,9 +6,19 @@ from tensordict import TensorDict
 from torch import nn
 
 from gentlerl import keys
+from gentlerl.functional import gaussian_nll
 from gentlerl.models import DynamicsModel, GaussianEnsemble, ICMModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, ICMLoss
 from gentlerl.transforms import HAND_FEATURES
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    """Small nets: on the shared 2-core machine, 2 torch threads ran these tests ~20x slower."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 def test_ensemble_members_equal_separate_mlps():
@@ -54,6 +64,32 @@ def test_bad_shapes_raise():
     loss = EnsembleModelLoss(PenaltyModel(3, 1, ensemble_size=3), name="penalty")
     with pytest.raises(ValueError, match=r"\[ensemble_size=3, B\]"):
         loss(_penalty_batch(torch.Generator().manual_seed(0), 8))
+
+
+def test_dynamics_prediction_is_an_exact_change_of_variables():
+    # Trained on normalised deltas z = (s' - s - m) / std; predict() maps to s' = s + m + std z, so
+    # -log N(s' | env units) = -log N(z | normalised) + sum_d log std_d, member by member.
+    gen = torch.Generator().manual_seed(0)
+    model = DynamicsModel(3, 2, {keys.TOUCH: (2, 2)}, ensemble_size=3, hidden=(8, 8, 8))
+    touch = torch.randn(16, 2, 2, generator=gen)
+    td = TensorDict(
+        {
+            keys.OBSERVATION: torch.randn(16, 3, generator=gen),
+            keys.ACTION: torch.randn(16, 2, generator=gen),
+            keys.TOUCH: touch,
+            "next": {keys.TOUCH: touch + 5.0 + 3.0 * torch.randn(16, 2, 2, generator=gen)},
+        },
+        [16],
+    )
+    model.update_normalizers(td)
+    std = model.delta_norms[keys.TOUCH].std
+    assert (std > 1.0).all()  # the log-scale term below is not trivially 0
+    mean, var = model.predict(td)[keys.TOUCH]
+    assert mean.shape == var.shape == (3, 16, 4)
+    env_units = gaussian_nll(td["next", keys.TOUCH].flatten(-2), mean, var).sum(-1)
+    torch.testing.assert_close(
+        env_units, model.nll(td, per_member=False) + std.log().sum(), rtol=1e-5, atol=1e-5
+    )
 
 
 def _penalty_batch(gen, n, shape=None):

@@ -1,7 +1,10 @@
 """The paper's gentleness equations (Huang et al. 2019, "Proposed Approach"), one function each.
 
 Shapes follow TorchRL: leading batch dims ``...``, then the feature dims named in each docstring.
-All functions are pure, differentiable where it makes sense, and finite for finite inputs.
+All functions are pure, differentiable where it makes sense, and finite for finite inputs of
+magnitude up to ~1e15 in float32 (tested; beyond that, squares and sums can overflow float32's
+3.4e38). Variances are floored (``gaussian_nll``'s ``min_var``) so a collapsed variance gives a
+large but finite NLL.
 """
 
 from __future__ import annotations
