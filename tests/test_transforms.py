@@ -55,7 +55,7 @@ def _pressing_rollout(env, steps=12):
     # fingertip 1 (only fingertip 0 ends the toy episode).
     action = torch.zeros(20)
     action[1] = 1.0
-    return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action))
+    return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action.expand(*td.shape, 20)))
 
 
 def test_impact_penalty_on_env_specs_reset_and_values():
@@ -253,3 +253,62 @@ def test_penalty_surprise_nll_floor_keeps_the_surprise_a_bonus():
     out = surprise(batch.clone())["next", keys.PENALTY_SURPRISE]
     expected = penalty_surprise(penalty, gaussian_nll(penalty, mu, s2).clamp_min(0.0), 2.0, 2.0)
     torch.testing.assert_close(out, expected)
+
+
+_MODEL_REWARDS = {
+    "r+rf+rs": keys.DYNAMICS_SURPRISE,
+    "r+rf+rsp": keys.PENALTY_SURPRISE,
+    "r+icm": keys.ICM_REWARD,
+}
+
+
+@pytest.mark.parametrize("variant", sorted(_MODEL_REWARDS))
+def test_model_rewards_agree_on_batch_env_replay_buffer_and_parallel_env(variant):
+    # The checklist for the model-owning transforms: one stack (so one set of networks) applied
+    # to a collected batch, appended to an env, as a replay-buffer transform and on a ParallelEnv.
+    key = _MODEL_REWARDS[variant]
+    stack = make_reward_transforms(variant, reward_delay=0, hidden=16, ensemble_size=3)
+    stack.step(0)
+    on_batch = stack.transform(_pressing_rollout(ToyHandEnv()))[("next", key)]
+    # Every reward is informative once the fingertip presses (steps 6+; r^sp is 0 before).
+    assert on_batch.shape == (12, 1) and (on_batch[6:] != 0).all()
+
+    env = TransformedEnv(ToyHandEnv(), stack.transform.clone())
+    on_env = _pressing_rollout(env)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(20), transform=stack.transform.clone())
+    rb.extend(_pressing_rollout(ToyHandEnv()))
+    parallel = TransformedEnv(
+        ParallelEnv(2, ToyHandEnv, mp_start_method="fork"), stack.transform.clone()
+    )
+    try:
+        check_env_specs(parallel)
+        on_parallel = _pressing_rollout(parallel)
+    finally:
+        parallel.close()
+    torch.testing.assert_close(on_env["next", key], on_batch)
+    torch.testing.assert_close(rb[:]["next", key], on_batch)
+    for row in on_parallel["next", key]:
+        torch.testing.assert_close(row, on_batch)
+
+    # Shared, not copied: a model update of the loss changes what the env-appended clone writes.
+    (loss,) = stack.model_losses.values()
+    params = [loss.model_params] + ([loss.target_model_params] if variant != "r+icm" else [])
+    with torch.no_grad():
+        for tensors in params:
+            for tensor in tensors.values(True, True):
+                tensor.add_(0.05)
+    updated = stack.transform(_pressing_rollout(ToyHandEnv()))[("next", key)]
+    assert not torch.allclose(updated, on_batch)
+    torch.testing.assert_close(_pressing_rollout(env)["next", key], updated)
+
+
+def test_icm_reward_is_half_eta_times_the_squared_feature_error():
+    stack = make_reward_transforms("r+icm", reward_delay=3, icm_eta=3.0)
+    batch = _pressing_rollout(ToyHandEnv())
+    assert stack.transform(batch.clone())["next", keys.ICM_REWARD].abs().sum() == 0  # delay
+    stack.step(3)
+    out = stack.transform(batch.clone())["next", keys.ICM_REWARD]
+    _, predicted_next, next_phi = stack.model_losses["icm"].predict(batch)
+    expected = 1.5 * (predicted_next - next_phi).pow(2).sum(-1, keepdim=True)
+    torch.testing.assert_close(out, expected.detach())
+    assert (out > 0).all()
