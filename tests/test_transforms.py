@@ -199,7 +199,7 @@ def test_state_dict_round_trip():
     )
 
 
-@pytest.mark.parametrize("variant", ["r+rf+rsp", "r+rf+rs"])
+@pytest.mark.parametrize("variant", ["r+rf+rsp", "r+rf+rs", "r+icm"])
 def test_transformed_hand_env_passes_check_env_specs(variant):
     from gentlerl.envs import make_env
 
