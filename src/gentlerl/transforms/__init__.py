@@ -18,8 +18,10 @@ moment, which the paper refreshes only every 5000 / 1000 model updates anyway).
 The model-owning transforms (``DynamicsSurprise``, ``PenaltySurprise``, ``ICMReward``) share their
 networks with a TorchRL ``LossModule`` (``EnsembleModelLoss`` / ``ICMLoss``), like TorchRL's
 ``RNDTransform`` / ``RNDLoss`` pair: the loss trains the model, the transform reads it (and
-``Transform.clone`` keeps sharing it). :func:`make_reward_transforms` builds the whole stack for a
-paper variant.
+``Transform.clone`` keeps sharing it). Append them to the batched env (``TransformedEnv(
+ParallelEnv(...), stack.transform)``), not inside the workers: a worker process would hold a copy
+of the networks that the loss's updates never reach. :func:`make_reward_transforms` builds the
+whole stack for a paper variant.
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
