@@ -152,7 +152,7 @@ class MultiHeadD4PGLoss(LossModule):
             [tensordict.get(("next", k)).reshape(*batch, 1) for k in self.reward_keys], -1
         )
         steps = tensordict.get(self.tensor_keys.steps_to_next_obs, None)
-        steps = torch.ones(*batch, 1) if steps is None else steps.reshape(*batch, 1)
+        steps = reward.new_ones(*batch, 1) if steps is None else steps.reshape(*batch, 1)
         terminated = tensordict.get(("next", self.tensor_keys.terminated)).reshape(*batch, 1)
         discount = self.gamma ** steps.to(reward.dtype) * (~terminated.bool()).to(reward.dtype)
         return categorical_projection(

@@ -30,8 +30,12 @@ from gentlerl.transforms.impact import ImpactPenalty
 from gentlerl.transforms.stack import HAND_FEATURES, VARIANTS, RewardStack, make_reward_transforms
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 
+#: The issue's / paper's name for the ICM baseline transform.
+ICM = ICMReward
+
 __all__ = [
     "HAND_FEATURES",
+    "ICM",
     "VARIANTS",
     "DynamicsSurprise",
     "ICMReward",
