@@ -4,16 +4,16 @@ import numpy as np
 import pytest
 import yaml
 
-from gentlerl.plot import find_runs, main, max_impacts, seed_band, summary_table
+from gentlerl.plot import find_runs, format_table, main, max_impacts, seed_band, summary_table
 
 
-def _fake_run(root, variant, seed, lam2, success, impacts):
+def _fake_run(root, variant, seed, lam2, success, impacts, **config):
     run = root / f"{variant}-{lam2}" / f"seed{seed}"
     scalars = run / "logs" / "scalars"
     (scalars / "eval").mkdir(parents=True)
     (scalars / "episode").mkdir()
     (scalars / "train").mkdir()
-    config = dict(task="touch", variant=variant, seed=seed, lam_prime=[2.0, lam2])
+    config = dict(task="touch", variant=variant, seed=seed, lam_prime=[2.0, lam2], **config)
     (run / "config.yaml").write_text(yaml.safe_dump(config))
     (scalars / "eval" / "success_rate.csv").write_text(
         "".join(f"{f},{s}\n" for f, s in zip((1000, 2000, 3000), success, strict=True))
@@ -41,6 +41,24 @@ def test_seeds_are_grouped_and_summarised(tmp_path):
     assert sorted(max_impacts(runs).tolist()) == [1.0, 2.0, 3.0, 5.0]
 
 
+def test_summary_leaves_out_the_random_warmup_and_reports_the_claims_numbers(tmp_path):
+    # Rollouts end at frames 200, 400, ...: the first two are random warm-up (<= 400 frames).
+    impacts = [9.0, 9.0, 0.0, 1.0, 2.0, 6.0, 0.0, 4.0]
+    _fake_run(tmp_path, "rs", 0, 2.0, (0.0, 1.0, 0.5), impacts, init_random_frames=400)
+    _fake_run(tmp_path, "rs", 1, 2.0, (0.0, 0.0, 0.9), [0.0, 3.0], init_random_frames=400)
+    runs = find_runs([tmp_path])
+    assert sorted(max_impacts(runs).tolist()) == [1.0, 2.0, 4.0, 6.0]  # the 9 N warm-up is gone
+    (row,) = summary_table(runs)
+    assert row["rollouts"] == 6  # 6 after warm-up for seed 0, none for seed 1
+    assert row["contact_share"] == pytest.approx(4 / 6)
+    assert row["median_max_impact"] == pytest.approx(3.0)
+    assert row["share_over_5N"] == pytest.approx(0.25)
+    assert row["mean_eval_success"] == pytest.approx((0.5 + 0.3) / 2)
+    assert row["seeds_reaching_0.8"] == 2
+    assert row["first_0.8_frames"] == pytest.approx((2000 + 3000) / 2)
+    assert format_table([row]).splitlines()[2].startswith("| touch | rs | 2 | 0.70 |")
+
+
 def test_seed_band_interpolates_on_a_common_grid():
     a = (np.array([0.0, 10.0]), np.array([0.0, 1.0]))
     b = (np.array([0.0, 10.0]), np.array([1.0, 1.0]))
@@ -57,6 +75,7 @@ def test_cli_writes_the_three_figures_and_a_summary(tmp_path):
     for name in ("impact_histograms.png", "learning_curves.png", "reward_components.png"):
         assert (out / name).stat().st_size > 5_000  # a real image, not an empty canvas
     assert "r+rf+rsp" in (out / "summary.csv").read_text()
+    assert "| touch | r+rf+rsp (λ'₂=3) | 1 |" in (out / "summary.md").read_text()
 
 
 def test_missing_runs_are_a_clear_error(tmp_path):

@@ -5,8 +5,8 @@ scalars under ``logs/scalars``, ``eval_episodes.csv``); a ``RUN_DIR`` may also b
 runs (searched recursively). Runs that differ only by seed are grouped: curves show the mean and
 the min-max spread over seeds. Figures (PNG):
 
-- ``impact_histograms.png`` — maximum impact per training rollout (N), rollouts with zero impact
-  ignored, one panel per variant, lambda'_2 values overlaid (paper Figs. 3 and 5);
+- ``impact_histograms.png`` — maximum impact per training rollout (N) after the random warm-up
+  (``init_random_frames``), rollouts with zero impact ignored, one panel per variant, lambda'_2 values overlaid (paper Figs. 3 and 5);
 - ``learning_curves.png`` — evaluation success rate and return vs env frames (paper Fig. 4);
 - ``reward_components.png`` — mean of each reward component in the sampled batches vs frames,
   with a dashed line where the intrinsic rewards start (paper Fig. 6).
@@ -102,11 +102,22 @@ def seed_band(series: Sequence[Series], points: int = 50) -> tuple[np.ndarray, .
     return grid, values.mean(0), values.min(0), values.max(0)
 
 
-def max_impacts(runs: Sequence[Run]) -> np.ndarray:
-    """Max impact per training rollout over ``runs``, rollouts without impact removed."""
-    values = [run.scalars.get("episode/max_impact", (None, np.zeros(0)))[1] for run in runs]
+def _after_warmup(run: Run, name: str) -> np.ndarray:
+    """Values of episode scalar ``name`` logged after the run's random warm-up frames.
+
+    Rollouts of the first ``init_random_frames`` come from a uniformly random policy, not from the
+    variant; at CPU scale they are a large share of a short run, so statistics leave them out.
+    """
+    frames, values = run.scalars.get(name, (np.zeros(0), np.zeros(0)))
+    return values[frames > run.config.get("init_random_frames", 0)]
+
+
+def max_impacts(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
+    """Max impact per training rollout after warm-up, over ``runs``; zero-impact ones removed
+    unless ``with_zeros``."""
+    values = [_after_warmup(run, "episode/max_impact") for run in runs]
     values = np.concatenate(values) if values else np.zeros(0)
-    return values[values > 0]
+    return values if with_zeros else values[values > 0]
 
 
 def plot_impact_histograms(runs: Sequence[Run], out: Path, bins: int = 30) -> Path:
@@ -171,25 +182,68 @@ def _save(fig: plt.Figure, path: Path) -> Path:
     return path
 
 
+_EVAL = "eval/success_rate"
+
+
+def _first_success(run: Run, threshold: float = 0.8) -> float:
+    frames, success = run.scalars.get(_EVAL, (np.zeros(0), np.zeros(0)))
+    hits = frames[success >= threshold]
+    return float(hits[0]) if len(hits) else float("nan")
+
+
 def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
-    """Per group: seeds, final eval success (mean), mean max impact of rollouts with impact."""
+    """Per group (runs that differ only by seed), the numbers the paper's claims are about.
+
+    Training rollouts after the random warm-up: ``contact_share`` (share with any impact),
+    ``mean/median/p90_max_impact`` and ``share_over_5N`` (of the rollouts with impact, N),
+    ``broken_share``. Evaluation: ``final_success`` and ``mean_eval_success`` (mean over seeds of
+    the last / of all evaluations), ``seeds_reaching_0.8`` and ``first_0.8_frames`` (mean over the
+    seeds that reached an evaluation success rate >= 0.8).
+    """
     rows = []
     for (task, label), group in group_runs(runs).items():
-        finals = [
-            r.scalars["eval/success_rate"][1][-1] for r in group if "eval/success_rate" in r.scalars
-        ]
-        impacts = max_impacts(group)
+        evals = [r.scalars[_EVAL][1] for r in group if _EVAL in r.scalars]
+        nan = float("nan")
+        all_impacts = max_impacts(group, with_zeros=True)
+        impacts = all_impacts[all_impacts > 0]
+        broken = np.concatenate([_after_warmup(r, "episode/broken") for r in group])
+        first = np.array([_first_success(r) for r in group])
+        reached = first[~np.isnan(first)]
         rows.append(
             {
                 "task": task,
                 "variant": label,
                 "seeds": len(group),
-                "final_success": float(np.mean(finals)) if finals else float("nan"),
+                "final_success": float(np.mean([e[-1] for e in evals])) if evals else nan,
+                "mean_eval_success": float(np.mean([e.mean() for e in evals])) if evals else nan,
+                "seeds_reaching_0.8": len(reached),
+                "first_0.8_frames": float(reached.mean()) if len(reached) else nan,
+                "rollouts": len(all_impacts),
+                "contact_share": _share(len(impacts), len(all_impacts)),
                 "mean_max_impact": float(impacts.mean()) if len(impacts) else 0.0,
-                "rollouts_with_impact": int(len(impacts)),
+                "median_max_impact": float(np.median(impacts)) if len(impacts) else 0.0,
+                "p90_max_impact": float(np.percentile(impacts, 90)) if len(impacts) else 0.0,
+                "share_over_5N": _share(int((impacts > 5).sum()), len(impacts)),
+                "broken_share": _share(int(broken.sum()), len(broken)),
             }
         )
     return rows
+
+
+def _share(part: int, whole: int) -> float:
+    return part / whole if whole else float("nan")
+
+
+def _cell(value: object) -> str:
+    return f"{value:.2f}" if isinstance(value, float) else str(value)
+
+
+def format_table(rows: Sequence[dict[str, object]]) -> str:
+    """``rows`` of :func:`summary_table` as a markdown table (floats to 2 decimals)."""
+    names = list(rows[0])
+    lines = ["| " + " | ".join(names) + " |", "|" + " --- |" * len(names)]
+    lines += ["| " + " | ".join(_cell(row[n]) for n in names) + " |" for row in rows]
+    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -212,7 +266,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+    (out / "summary.md").write_text(format_table(rows) + "\n")
     print(out / "summary.csv")
+    print(format_table(rows))
 
 
 if __name__ == "__main__":
