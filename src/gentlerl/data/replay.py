@@ -90,10 +90,15 @@ def make_replay_buffer(
 
 
 def make_model_buffer(
-    capacity: int, batch_size: int, device: str = "cpu"
+    capacity: int, batch_size: int | None = None, device: str = "cpu"
 ) -> TensorDictReplayBuffer:
-    """Uniform buffer of 1-step transitions for the dynamics / penalty / ICM models."""
-    for name, value in (("capacity", capacity), ("batch_size", batch_size)):
+    """Uniform buffer of 1-step transitions for the dynamics / penalty / ICM models.
+
+    Without ``batch_size`` every ``sample(n)`` names its size (the training loop draws a
+    bootstrap batch of ``ensemble_size x model_batch_size`` for ensembles).
+    """
+    sizes = (("capacity", capacity), ("batch_size", 1 if batch_size is None else batch_size))
+    for name, value in sizes:
         if int(value) < 1:
             raise ValueError(f"{name} must be >= 1, got {value}")
     return TensorDictReplayBuffer(

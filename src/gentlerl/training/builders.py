@@ -138,7 +138,7 @@ def make_buffers(cfg: TrainConfig, total_updates: int) -> tuple:
         reward_keys=cfg.reward_keys,
     )
     beta_schedule = make_beta_scheduler(rb, 1.0, max(total_updates, 1)) if cfg.prioritized else None
-    model_rb = make_model_buffer(cfg.model_buffer_size, cfg.model_batch_size)
+    model_rb = make_model_buffer(cfg.model_buffer_size)
     return rb, beta_schedule, model_rb
 
 
@@ -160,6 +160,8 @@ def make_collector(
         frames_per_batch=cfg.frames_per_batch,
         total_frames=frames_left,
         init_random_frames=random_left,
+        # The policy is stateless: the env needs no InitTracker / primer (and no FutureWarning).
+        auto_register_policy_transforms=False,
     )
     if cfg.collector == "single":
         return Collector(env_factory, policy, **common)

@@ -162,12 +162,13 @@ class Trainer:
     # -- updates -------------------------------------------------------------------------
     def _update_models(self) -> dict[str, float]:
         metrics = {}
+        b = self.cfg.model_batch_size
         for name, loss in self.stack.model_losses.items():
             if isinstance(loss, EnsembleModelLoss):
-                e, b = loss.ensemble_size, self.cfg.model_batch_size
+                e = loss.ensemble_size
                 batch = self.model_rb.sample(e * b).reshape(e, b)  # a bootstrap batch per member
             else:
-                batch = self.model_rb.sample()
+                batch = self.model_rb.sample(b)
             out = loss(batch)
             total = sum(v for k, v in out.items() if k.startswith("loss_"))
             self.model_optims[name].zero_grad()
