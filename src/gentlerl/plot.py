@@ -125,14 +125,15 @@ def plot_impact_histograms(runs: Sequence[Run], out: Path, bins: int = 30) -> Pa
     for run in runs:
         by_variant[f"{run.config.get('task')}: {run.config.get('variant')}"][run.label].append(run)
     fig, axes = plt.subplots(1, len(by_variant), figsize=(4 * len(by_variant), 3), squeeze=False)
-    top = max(
-        (max_impacts(r).max(initial=0) for v in by_variant.values() for r in v.values()), default=1
-    )
-    edges = np.linspace(0, max(top, 1e-3), bins + 1)
+    everything = max_impacts(runs)
+    # A few very hard hits would squeeze the bulk into one bin: the last bin holds all >= p98.
+    top = max(float(np.percentile(everything, 98)) if len(everything) else 1.0, 1e-3)
+    edges = np.linspace(0, top, bins + 1)
     for ax, (title, labelled) in zip(axes[0], sorted(by_variant.items()), strict=True):
         for label, group in sorted(labelled.items()):
-            ax.hist(max_impacts(group), bins=edges, alpha=0.6, label=label)
-        ax.set(title=title, xlabel="max impact per rollout (N)", ylabel="rollouts")
+            ax.hist(np.minimum(max_impacts(group), top), bins=edges, alpha=0.6, label=label)
+        xlabel = f"max impact per rollout (N), last bin >= {top:.1f}"
+        ax.set(title=title, xlabel=xlabel, ylabel="rollouts")
         ax.legend(fontsize=7)
     return _save(fig, out / "impact_histograms.png")
 
