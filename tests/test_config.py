@@ -20,6 +20,7 @@ CONFIG_DIR = Path(__file__).resolve().parents[1] / "recipes" / "config"
 def test_default_is_touch_full_method_cpu_scale():
     cfg = make_config()
     assert (cfg.task, cfg.variant, cfg.scale, cfg.seed) == ("touch", "r+rf+rsp", "cpu", 0)
+    assert cfg.lam_prime == (2.0, 3.0)  # the touch setting
     assert cfg.reward_keys == ["reward", "penalty", "penalty_surprise"]
     assert cfg.collector == "single" and cfg.sigma == 0.3 and cfg.n_steps == 5
 
@@ -37,8 +38,8 @@ def test_paper_scale_has_the_papers_numbers():
 
 
 def test_overrides_apply_on_top_of_the_scale():
-    cfg = make_config("paper", batch_size=64, lam_prime=[2.0, 3.0])
-    assert cfg.batch_size == 64 and cfg.lam_prime == (2.0, 3.0) and cfg.buffer_size == 1_000_000
+    cfg = make_config("paper", batch_size=64, lam_prime=[2.0, 1.5])
+    assert cfg.batch_size == 64 and cfg.lam_prime == (2.0, 1.5) and cfg.buffer_size == 1_000_000
 
 
 @pytest.mark.parametrize(

@@ -154,8 +154,13 @@ def plot_learning_curves(runs: Sequence[Run], out: Path) -> Path:
 
 def plot_reward_components(runs: Sequence[Run], out: Path) -> Path:
     groups = group_runs(runs)
-    fig, axes = plt.subplots(1, len(groups), figsize=(4.5 * len(groups), 3.2), squeeze=False)
-    for ax, ((task, label), group) in zip(axes[0], groups.items(), strict=True):
+    cols = min(len(groups), 4)
+    rows = -(-len(groups) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.2 * rows), squeeze=False)
+    for ax in axes.flat[len(groups) :]:
+        ax.set_visible(False)
+    for ax, ((task, label), group) in zip(axes.flat, groups.items(), strict=False):
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(4))
         names = sorted({n for r in group for n in r.scalars if n.startswith("train/batch_")})
         for name in names:
             grid, mean, low, high = seed_band([r.scalars[name] for r in group if name in r.scalars])
