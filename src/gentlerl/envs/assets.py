@@ -3,6 +3,7 @@ and MuJoCo's ``touch_grid`` plugin on the five fingertip touch sites. Nothing is
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from functools import cache
 from pathlib import Path
@@ -24,15 +25,17 @@ BLOCK_QUAT = "0.930508 -0.366271 0 0"
 
 
 def hand_asset_dir() -> Path:
-    """``gymnasium_robotics/envs/assets/hand`` of the installed package."""
-    try:
-        import gymnasium_robotics
-    except ImportError as err:  # pragma: no cover - a hard dependency
+    """``gymnasium_robotics/envs/assets/hand`` of the installed package.
+
+    Found without importing it (its import registers every gymnasium env and prints warnings).
+    """
+    spec = importlib.util.find_spec("gymnasium_robotics")
+    if spec is None or not spec.submodule_search_locations:  # pragma: no cover - a dependency
         raise ImportError(
             "gentlerl needs the Shadow Hand model shipped in gymnasium-robotics: "
             "pip install gymnasium-robotics"
-        ) from err
-    path = Path(gymnasium_robotics.__file__).parent / "envs" / "assets" / "hand"
+        )
+    path = Path(spec.submodule_search_locations[0]) / "envs" / "assets" / "hand"
     if not (path / "robot.xml").is_file():
         raise FileNotFoundError(f"the Shadow Hand MJCF was not found under {path}")
     return path
