@@ -20,7 +20,7 @@ CONFIG_DIR = Path(__file__).resolve().parents[1] / "recipes" / "config"
 def test_default_is_touch_full_method_cpu_scale():
     cfg = make_config()
     assert (cfg.task, cfg.variant, cfg.scale, cfg.seed) == ("touch", "r+rf+rsp", "cpu", 0)
-    assert cfg.lam_prime == (2.0, 3.0)  # the touch setting
+    assert cfg.lam_prime == (2.0, 2.0)
     assert cfg.reward_keys == ["reward", "penalty", "penalty_surprise"]
     assert cfg.collector == "single" and cfg.sigma == 0.3 and cfg.n_steps == 5
 

@@ -55,7 +55,7 @@ class TrainConfig:
     beta: float = 0.4
     # Gentleness rewards and their models.
     lam: tuple[float, float] = (2.0, 2.0)
-    lam_prime: tuple[float, float] = (2.0, 3.0)  # the touch setting (see variant/r+rf+rsp.yaml)
+    lam_prime: tuple[float, float] = (2.0, 2.0)
     reward_delay: int = 2_000
     dynamics_target_period: int = 500
     penalty_target_period: int = 100
