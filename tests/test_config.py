@@ -20,7 +20,7 @@ CONFIG_DIR = Path(__file__).resolve().parents[1] / "recipes" / "config"
 def test_default_is_touch_full_method_cpu_scale():
     cfg = make_config()
     assert (cfg.task, cfg.variant, cfg.scale, cfg.seed) == ("touch", "r+rf+rsp", "cpu", 0)
-    assert cfg.lam_prime == (2.0, 2.0)
+    assert cfg.lam_prime == (2.0, 2.0) and not cfg.episodic_intrinsic
     assert cfg.reward_keys == ["reward", "penalty", "penalty_surprise"]
     assert cfg.collector == "single" and cfg.sigma == 0.3 and cfg.n_steps == 5
 
@@ -32,6 +32,7 @@ def test_paper_scale_has_the_papers_numbers():
     assert cfg.batch_size == 256 and cfg.buffer_size == 1_000_000
     assert cfg.lr_actor == cfg.lr_critic == 1e-4
     assert cfg.total_frames == 500_000 and cfg.reward_delay == 20_000
+    assert cfg.episodic_intrinsic  # the paper's D4PG: every head cut at termination
     assert (cfg.dynamics_target_period, cfg.penalty_target_period) == (5000, 1000)
     assert cfg.actor_hidden == (300, 200) and cfg.critic_hidden == (400, 300)
     assert (cfg.num_atoms, cfg.v_min, cfg.v_max) == (101, -100.0, 100.0)
@@ -121,3 +122,14 @@ def test_recipe_scale_files_match_the_library_presets():
         as_config = make_config(scale, **content)
         assert as_config == make_config(scale), scale
         assert sorted(content) == sorted(preset), scale
+
+
+@pytest.mark.parametrize(
+    ("scale", "episodic"), [("cpu", [True, True, False]), ("paper", [True] * 3)]
+)
+def test_learner_cuts_the_bootstrap_of_intrinsic_heads_only_at_paper_scale(scale, episodic):
+    from gentlerl.training.builders import make_learner
+
+    learner = make_learner(make_config(scale), obs_dim=63, action_dim=20)
+    assert learner.loss.reward_keys == ["reward", "penalty", "penalty_surprise"]
+    assert learner.loss.episodic.tolist() == episodic

@@ -65,6 +65,30 @@ def test_bootstrap_uses_gamma_to_the_n():
     torch.testing.assert_close((target * support).sum(-1), expected, atol=1e-5, rtol=1e-5)
 
 
+def _target_mean(loss, td, gamma_n):
+    """r + gamma_n * E[Z'] per head, from the target actor and target critics."""
+    with torch.no_grad():
+        nxt = td["next"].select("observation").clone()
+        with loss.target_actor_network_params.to_module(loss.actor_network):
+            loss.actor_network(nxt)
+        with loss.target_value_network_params.to_module(loss.value_network):
+            z = loss.value_network(nxt)["state_action_value_logits"].softmax(-1)
+    return gamma_n * (z * torch.linspace(-10, 10, 21)).sum(-1)
+
+
+def test_non_episodic_heads_bootstrap_through_termination():
+    # Terminal, n = 2, gamma = 0.5: the episodic task head's target is its reward alone; the
+    # non-episodic penalty head's is r + 0.25 * E[Z'] as if the episode went on.
+    loss = _loss(gamma=0.5, non_episodic_keys=["penalty"])
+    td = _batch(terminated=True, steps=2)
+    mean = (loss.target_distribution(td) * torch.linspace(-10, 10, 21)).sum(-1)
+    bootstrap = _target_mean(loss, td, 0.25)
+    torch.testing.assert_close(mean[:, 0], torch.full((8,), 1.0), atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(mean[:, 1], -2.0 + bootstrap[:, 1], atol=1e-5, rtol=1e-5)
+    with pytest.raises(ValueError, match=r"non_episodic_keys \['icm_reward'\] are not reward"):
+        _loss(non_episodic_keys=["icm_reward"])
+
+
 def test_losses_priorities_and_head_names():
     loss = _loss()
     td = _batch()

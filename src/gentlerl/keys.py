@@ -26,6 +26,8 @@ PENALTY = "penalty"  # [1] r^f_t
 DYNAMICS_SURPRISE = "dynamics_surprise"  # [1] r^s_t
 PENALTY_SURPRISE = "penalty_surprise"  # [1] r^{sp}_t
 ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
+#: The curiosity rewards (not the task reward, not the impact penalty).
+INTRINSIC_REWARDS = (DYNAMICS_SURPRISE, PENALTY_SURPRISE, ICM_REWARD)
 
 # The dynamics model's three predicted feature groups (paper: one ensemble per group).
 DYNAMICS_FEATURES = (JOINT_POS, JOINT_VEL, TOUCH)

@@ -34,6 +34,11 @@ class MultiHeadD4PGLoss(LossModule):
         \qquad
         \mathcal{L}_{actor} = -\mathbb{E}\left[ \sum_k \mathbb{E}[Z^k(s, \pi(s))] \right].
 
+    Heads named in ``non_episodic_keys`` bootstrap through ``terminated`` (their discount ignores
+    it), as RND treats its intrinsic return (Burda et al. 2019): ending the episode by succeeding
+    then does not also end an intrinsic reward stream, so curiosity cannot outbid the task by
+    keeping episodes alive. The paper does not say; by default every head is episodic.
+
     The critic parameters get no gradient from the actor loss. ``td_error`` (the replay priority)
     is the mean over heads of the per-sample cross-entropies, as Acme's D4PG uses the critic loss.
 
@@ -43,6 +48,8 @@ class MultiHeadD4PGLoss(LossModule):
 
     Keyword Args:
         reward_keys: the reward components, in critic-head order (read under ``"next"``).
+        non_episodic_keys: components (a subset of ``reward_keys``) whose bootstrap ignores
+            termination, e.g. the intrinsic ``penalty_surprise``.
         v_min, v_max: support of the categorical value distribution (paper: [-100, 100]).
         gamma: discount per step; the bootstrap uses ``gamma ** steps_to_next_obs``.
         delay_actor, delay_value: keep target copies (update them with TorchRL's
@@ -96,6 +103,7 @@ class MultiHeadD4PGLoss(LossModule):
         value_network: TensorDictModule,
         *,
         reward_keys: Sequence[NestedKey],
+        non_episodic_keys: Sequence[NestedKey] = (),
         v_min: float = -100.0,
         v_max: float = 100.0,
         gamma: float = 0.99,
@@ -111,6 +119,13 @@ class MultiHeadD4PGLoss(LossModule):
         if not v_max > v_min:
             raise ValueError(f"need v_min < v_max, got v_min={v_min}, v_max={v_max}")
         self.reward_keys = list(reward_keys)
+        unknown = [k for k in non_episodic_keys if k not in self.reward_keys]
+        if unknown:
+            raise ValueError(
+                f"non_episodic_keys {unknown} are not reward components {self.reward_keys}"
+            )
+        episodic = [k not in non_episodic_keys for k in self.reward_keys]
+        self.register_buffer("episodic", torch.tensor(episodic), persistent=False)
         self.v_min, self.v_max, self.gamma = float(v_min), float(v_max), float(gamma)
         self.use_prioritized_weights = use_prioritized_weights
         self.reduction = "mean"
@@ -154,7 +169,8 @@ class MultiHeadD4PGLoss(LossModule):
         steps = tensordict.get(self.tensor_keys.steps_to_next_obs, None)
         steps = reward.new_ones(*batch, 1) if steps is None else steps.reshape(*batch, 1)
         terminated = tensordict.get(("next", self.tensor_keys.terminated)).reshape(*batch, 1)
-        discount = self.gamma ** steps.to(reward.dtype) * (~terminated.bool()).to(reward.dtype)
+        cut = terminated.bool() & self.episodic  # [B, K]: non-episodic heads bootstrap anyway
+        discount = self.gamma ** steps.to(reward.dtype) * (~cut).to(reward.dtype)
         return categorical_projection(
             next_logits.softmax(-1), reward, discount, self.v_min, self.v_max
         )

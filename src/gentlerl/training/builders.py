@@ -109,6 +109,7 @@ def make_learner(cfg: TrainConfig, obs_dim: int, action_dim: int) -> Learner:
         actor,
         critic,
         reward_keys=cfg.reward_keys,
+        non_episodic_keys=[] if cfg.episodic_intrinsic else _intrinsic(cfg.reward_keys),
         v_min=cfg.v_min,
         v_max=cfg.v_max,
         gamma=cfg.gamma,
@@ -168,6 +169,10 @@ def make_collector(
     return MultiSyncCollector(
         [env_factory] * cfg.num_workers, policy, cat_results="stack", **common
     )
+
+
+def _intrinsic(reward_keys: list[str]) -> list[str]:
+    return [k for k in reward_keys if k in keys.INTRINSIC_REWARDS]
 
 
 def make_exploration(learner: Learner, cfg: TrainConfig, action_dim: int) -> torch.nn.Module:

@@ -69,6 +69,11 @@ class TrainConfig:
     # 0 at CPU scale: without it r+rf+rsp collapsed after each success (measured, see README).
     surprise_nll_floor: float | None = 0.0
     icm_eta: float = 1.0
+    # False: intrinsic critics (surprise, ICM) bootstrap through termination, as RND does
+    # (MultiHeadD4PGLoss non_episodic_keys), so succeeding does not cost the curiosity stream.
+    # Episodic heads let r+rf+rsp farm surprise instead of finishing (measured, docs/REPRODUCTION.md);
+    # the paper scale keeps every head episodic (the paper's D4PG).
+    episodic_intrinsic: bool = False
     # Evaluation, logging, checkpoints.
     eval_every_frames: int = 5_000
     eval_episodes: int = 10
@@ -98,6 +103,7 @@ SCALES: dict[str, dict[str, Any]] = {
         "v_min": -100.0,
         "v_max": 100.0,
         "surprise_nll_floor": None,
+        "episodic_intrinsic": True,
         "batch_size": 256,
         "buffer_size": 1_000_000,
         "utd_ratio": 1.0,
