@@ -48,25 +48,8 @@ def test_terminal_target_is_the_reward_of_each_head():
     assert target[0, 1, 8].item() == pytest.approx(1.0)
 
 
-def test_bootstrap_uses_gamma_to_the_n():
-    # Non-terminal, n = 3 steps, gamma = 0.5: discount 0.125; the target mean is
-    # r + 0.125 * E[Z'] for each head (no clipping inside [-10, 10]).
-    loss = _loss(gamma=0.5)
-    td = _batch(terminated=False, steps=3)
-    target = loss.target_distribution(td)
-    support = torch.linspace(-10, 10, 21)
-    with torch.no_grad():
-        nxt = td["next"].select("observation").clone()
-        with loss.target_actor_network_params.to_module(loss.actor_network):
-            loss.actor_network(nxt)
-        with loss.target_value_network_params.to_module(loss.value_network):
-            z = loss.value_network(nxt)["state_action_value_logits"].softmax(-1)
-    expected = torch.tensor([1.0, -2.0]) + 0.125 * (z * support).sum(-1)
-    torch.testing.assert_close((target * support).sum(-1), expected, atol=1e-5, rtol=1e-5)
-
-
 def _target_mean(loss, td, gamma_n):
-    """r + gamma_n * E[Z'] per head, from the target actor and target critics."""
+    """gamma_n * E[Z'] per head, from the target actor and target critics."""
     with torch.no_grad():
         nxt = td["next"].select("observation").clone()
         with loss.target_actor_network_params.to_module(loss.actor_network):
@@ -87,6 +70,17 @@ def test_non_episodic_heads_bootstrap_through_termination():
     torch.testing.assert_close(mean[:, 1], -2.0 + bootstrap[:, 1], atol=1e-5, rtol=1e-5)
     with pytest.raises(ValueError, match=r"non_episodic_keys \['icm_reward'\] are not reward"):
         _loss(non_episodic_keys=["icm_reward"])
+
+
+def test_bootstrap_uses_gamma_to_the_n():
+    # Non-terminal, n = 3 steps, gamma = 0.5: discount 0.125; the target mean is
+    # r + 0.125 * E[Z'] for each head (no clipping inside [-10, 10]).
+    loss = _loss(gamma=0.5)
+    td = _batch(terminated=False, steps=3)
+    support = torch.linspace(-10, 10, 21)
+    expected = torch.tensor([1.0, -2.0]) + _target_mean(loss, td, 0.125)
+    mean = (loss.target_distribution(td) * support).sum(-1)
+    torch.testing.assert_close(mean, expected, atol=1e-5, rtol=1e-5)
 
 
 def test_losses_priorities_and_head_names():

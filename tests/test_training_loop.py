@@ -215,10 +215,14 @@ def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
 def test_default_recipe_learns_touch(tmp_path):
     """Issue §5: the default recipe (touch, r+rf+rsp, cpu scale) reaches >= 0.8 evaluation
     success (10 noise-free episodes) on the 2-core CPU. Measured on 3 seeds: every seed reaches
-    1.0 by 25k frames, but none holds it (see docs/REPRODUCTION.md), so only the peak is asserted."""
+    1.0 by 20k frames, but only one holds it (see docs/REPRODUCTION.md), so only the peak after
+    the first updates is asserted."""
     cfg = make_config(
         run_dir=str(tmp_path), wandb_mode="disabled", progress=False, total_frames=30_000
     )
     trainer = Trainer(cfg)
     trainer.run()
-    assert max(e["success_rate"] for e in trainer.eval_history) >= 0.8
+    learned = [
+        e["success_rate"] for e in trainer.eval_history if e["frames"] > cfg.init_random_frames
+    ]
+    assert max(learned) >= 0.8
