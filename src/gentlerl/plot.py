@@ -6,7 +6,8 @@ runs (searched recursively). Runs that differ only by seed are grouped: curves s
 the min-max spread over seeds. Figures (PNG):
 
 - ``impact_histograms.png`` — maximum impact per training rollout (N) after the random warm-up
-  (``init_random_frames``), rollouts with zero impact ignored, one panel per variant, lambda'_2 values overlaid (paper Figs. 3 and 5);
+  (``init_random_frames``), rollouts with zero impact ignored, one panel per variant, lambda'_2
+  values overlaid (paper Figs. 3 and 5);
 - ``learning_curves.png`` — evaluation success rate and return vs env frames (paper Fig. 4);
 - ``reward_components.png`` — mean of each reward component in the sampled batches vs frames,
   with a dashed line where the intrinsic rewards start (paper Fig. 6).
