@@ -97,9 +97,8 @@ def make_model_buffer(
     Without ``batch_size`` every ``sample(n)`` names its size (the training loop draws a
     bootstrap batch of ``ensemble_size x model_batch_size`` for ensembles).
     """
-    sizes = (("capacity", capacity), ("batch_size", 1 if batch_size is None else batch_size))
-    for name, value in sizes:
-        if int(value) < 1:
+    for name, value in (("capacity", capacity), ("batch_size", batch_size)):
+        if value is not None and int(value) < 1:
             raise ValueError(f"{name} must be >= 1, got {value}")
     return TensorDictReplayBuffer(
         storage=LazyTensorStorage(capacity, device=device),
