@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from torchrl.envs import RenameTransform, TransformedEnv
 
 from gentlerl.training import SCALES, TrainConfig, make_config
-from gentlerl.training.builders import check_env_keys
+from gentlerl.training.builders import check_env_keys, make_learner
 from gentlerl.transforms import VARIANTS, make_reward_transforms
 from tests.toy_env import ToyHandEnv
 
@@ -128,8 +128,6 @@ def test_recipe_scale_files_match_the_library_presets():
     ("scale", "episodic"), [("cpu", [True, True, False]), ("paper", [True] * 3)]
 )
 def test_learner_cuts_the_bootstrap_of_intrinsic_heads_only_at_paper_scale(scale, episodic):
-    from gentlerl.training.builders import make_learner
-
     learner = make_learner(make_config(scale), obs_dim=63, action_dim=20)
     assert learner.loss.reward_keys == ["reward", "penalty", "penalty_surprise"]
     assert learner.loss.episodic.tolist() == episodic

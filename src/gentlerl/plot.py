@@ -207,10 +207,9 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
     the last / of all evaluations), ``seeds_reaching_0.8`` and ``first_0.8_frames`` (mean over the
     seeds that reached an evaluation success rate >= 0.8).
     """
-    rows = []
+    rows, nan = [], float("nan")
     for (task, label), group in group_runs(runs).items():
         evals = [r.scalars[_EVAL][1] for r in group if _EVAL in r.scalars]
-        nan = float("nan")
         all_impacts = max_impacts(group, with_zeros=True)
         impacts = all_impacts[all_impacts > 0]
         broken = np.concatenate([_after_warmup(r, "episode/broken") for r in group])
@@ -238,7 +237,7 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
 
 
 def _share(part: int, whole: int) -> float:
-    return part / whole if whole else float("nan")
+    return part / whole if whole else float("nan")  # no rollouts: undefined, not 0
 
 
 def _cell(value: object) -> str:
