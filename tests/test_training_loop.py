@@ -12,7 +12,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.envs import TransformedEnv
 
 from gentlerl import keys
-from gentlerl.training import Trainer, make_config, train
+from gentlerl.training import Trainer, load_policy, make_config, train
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EVAL_COLUMNS, EpisodeTracker
 from gentlerl.transforms import ImpactPenalty
@@ -128,6 +128,36 @@ def test_run_directory_follows_the_logging_contract(finished_run):
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == EVAL_COLUMNS and len(rows) == 1 + 3 * 2
     assert summary == {k: v for k, v in trainer.eval_history[-1].items() if k != "frames"}
+
+
+def test_best_policy_is_the_best_evaluation_of_the_run(finished_run):
+    run_dir, trainer, _ = finished_run
+
+    def rank(r):
+        return (r["success_rate"], -r["broken_rate"], -r["max_impact_mean"])
+
+    best = max(trainer.eval_history, key=rank)  # ties: the earliest evaluation stays
+    state = torch.load(run_dir / "best_policy.pt", weights_only=False)
+    assert state["eval"] == best == trainer.best_eval
+    cfg, actor = load_policy(run_dir / "best_policy.pt")
+    assert cfg.variant == "r+rf+rsp" and set(actor.state_dict()) == set(state["actor"])
+
+
+def test_best_policy_ranks_success_then_breaks_then_impact(tmp_path):
+    trainer = Trainer(tiny_config(tmp_path), toy_env)
+    path = tmp_path / "best_policy.pt"
+
+    def offer(frames, success, broken, impact):
+        result = dict(frames=frames, success_rate=success, broken_rate=broken)
+        trainer._keep_best({**result, "max_impact_mean": impact, "return": 0.0})
+        return torch.load(path, weights_only=False)["eval"]["frames"]
+
+    assert offer(1, 0.5, 0.0, 1.0) == 1
+    assert offer(2, 0.4, 0.0, 0.1) == 1  # less success loses, however gentle
+    assert offer(3, 0.5, 0.0, 0.8) == 3  # same success, gentler: kept
+    assert offer(4, 0.5, 0.0, 0.8) == 3  # a tie keeps the earlier policy
+    assert offer(5, 0.9, 0.1, 3.0) == 5
+    assert offer(6, 0.9, 0.0, 4.0) == 6  # same success, fewer breaks
 
 
 def test_intrinsic_rewards_switch_on_after_the_reward_delay(finished_run):

@@ -103,7 +103,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m gentlerl.video", description=__doc__.splitlines()[0]
     )
-    parser.add_argument("checkpoint", help="a run's checkpoint.pt")
+    parser.add_argument("checkpoint", help="a run's checkpoint.pt or best_policy.pt")
     parser.add_argument("-o", "--out", default="rollout.gif", help=".mp4 or .gif")
     parser.add_argument("--episodes", type=int, default=2)
     parser.add_argument("--size", type=int, default=240)

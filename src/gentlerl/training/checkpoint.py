@@ -66,7 +66,10 @@ def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any]) -> None:
 
 
 def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:
-    """The run's config and its deterministic actor (no exploration noise), from a checkpoint.
+    """The run's config and its deterministic actor (no exploration noise).
+
+    ``path`` is a run's ``checkpoint.pt`` (the last actor) or ``best_policy.pt`` (the actor of its
+    best evaluation).
 
     Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env_kwargs)``.
     """

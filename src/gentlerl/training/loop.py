@@ -50,6 +50,8 @@ from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EpisodeTracker, RunLogger
 
 CHECKPOINT = "checkpoint.pt"
+#: The actor of the best evaluation so far (see :meth:`Trainer._keep_best`); ``load_policy`` reads it.
+BEST_POLICY = "best_policy.pt"
 DONE_MARKER = "DONE"
 
 
@@ -101,6 +103,7 @@ class Trainer:
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
         self.nstep_tails: list[TensorDictBase | None] = []  # one per env (collector row)
         self.eval_history: list[dict[str, float]] = []
+        self.best_eval: dict[str, float] | None = None
 
     # -- state ---------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
@@ -121,6 +124,7 @@ class Trainer:
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
             "eval_history": list(self.eval_history),
+            "best_eval": self.best_eval,
             "rng": _rng_state(),
         }
 
@@ -139,6 +143,7 @@ class Trainer:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
         self.counters = dict(state["counters"])
         self.eval_history = list(state["eval_history"])
+        self.best_eval = state.get("best_eval")  # absent in checkpoints from before it existed
         _set_rng_state(state["rng"])
 
     def _extend_agent_buffer(self, batch: TensorDictBase) -> None:
@@ -300,7 +305,31 @@ class Trainer:
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
         logger.log_eval_episodes(frames, episodes)
         self.eval_history.append({"frames": frames, **summary})
+        self._keep_best({"frames": frames, **summary})
         return summary
+
+    def _keep_best(self, result: dict[str, float]) -> None:
+        """Save the actor to :data:`BEST_POLICY` when this evaluation beats every earlier one.
+
+        Order: higher success rate, then lower broken rate, then lower mean max impact (the
+        gentler of two equally successful policies). DDPG policies can lose a solved task later
+        in training (docs/REPRODUCTION.md), so the best one is kept apart from the last one.
+        """
+
+        def rank(r: dict[str, float]) -> tuple[float, float, float]:
+            return (r["success_rate"], -r["broken_rate"], -r["max_impact_mean"])
+
+        if self.best_eval is not None and rank(result) <= rank(self.best_eval):
+            return
+        self.best_eval = dict(result)
+        policy = {
+            "config": self.cfg.to_dict(),
+            "obs_dim": self.obs_dim,
+            "action_dim": self.action_dim,
+            "actor": self.learner.actor.state_dict(),
+            "eval": self.best_eval,
+        }
+        save_checkpoint(self.run_dir / BEST_POLICY, policy)
 
 
 def _cut(tail: TensorDictBase | None) -> TensorDictBase | None:
