@@ -72,6 +72,22 @@ def test_non_episodic_heads_bootstrap_through_termination():
         _loss(non_episodic_keys=["icm_reward"])
 
 
+def test_target_policy_smoothing_perturbs_each_targets_action():
+    # Non-terminal rows with the same next observation: without noise every row has the same
+    # target; with TD3 smoothing each row bootstraps from its own noisy action; a zero clip
+    # removes the noise again.
+    td = _batch(terminated=False)
+    plain = _loss().target_distribution(td)
+    torch.testing.assert_close(plain, plain[:1].expand_as(plain))
+    smoothed = _loss(policy_noise=0.2).target_distribution(td)
+    assert (smoothed - smoothed[:1]).abs().amax(dim=(1, 2)).gt(1e-4)[1:].all()
+    torch.testing.assert_close(
+        _loss(policy_noise=0.2, noise_clip=0.0).target_distribution(td), plain
+    )
+    with pytest.raises(ValueError, match="policy_noise and noise_clip must be >= 0, got -0.1"):
+        _loss(policy_noise=-0.1)
+
+
 def test_bootstrap_uses_gamma_to_the_n():
     # Non-terminal, n = 3 steps, gamma = 0.5: discount 0.125; the target mean is
     # r + 0.125 * E[Z'] for each head (no clipping inside [-10, 10]).

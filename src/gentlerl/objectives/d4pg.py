@@ -52,6 +52,11 @@ class MultiHeadD4PGLoss(LossModule):
             termination, e.g. the intrinsic ``penalty_surprise``.
         v_min, v_max: support of the categorical value distribution (paper: [-100, 100]).
         gamma: discount per step; the bootstrap uses ``gamma ** steps_to_next_obs``.
+        policy_noise: std of the Gaussian noise added to the target actor's actions (TD3's target
+            policy smoothing, Fujimoto et al. 2018; TorchRL ``TD3Loss``), clipped to
+            ``[-noise_clip, noise_clip]``, the noisy action clipped to [-1, 1]. It keeps the actor
+            from exploiting narrow peaks of a critic's error. 0 (default): D4PG as published.
+        noise_clip: bound of that noise.
         delay_actor, delay_value: keep target copies (update them with TorchRL's
             ``HardUpdate`` / ``SoftUpdate``).
         use_prioritized_weights: weight samples by ``priority_weight`` when present ("auto").
@@ -107,6 +112,8 @@ class MultiHeadD4PGLoss(LossModule):
         v_min: float = -100.0,
         v_max: float = 100.0,
         gamma: float = 0.99,
+        policy_noise: float = 0.0,
+        noise_clip: float = 0.5,
         delay_actor: bool = True,
         delay_value: bool = True,
         use_prioritized_weights: str | bool = "auto",
@@ -118,6 +125,11 @@ class MultiHeadD4PGLoss(LossModule):
             raise ValueError(f"gamma must be in [0, 1], got {gamma}")
         if not v_max > v_min:
             raise ValueError(f"need v_min < v_max, got v_min={v_min}, v_max={v_max}")
+        if policy_noise < 0 or noise_clip < 0:
+            raise ValueError(
+                f"policy_noise and noise_clip must be >= 0, got {policy_noise} and {noise_clip}"
+            )
+        self.policy_noise, self.noise_clip = float(policy_noise), float(noise_clip)
         self.reward_keys = list(reward_keys)
         unknown = [k for k in non_episodic_keys if k not in self.reward_keys]
         if unknown:
@@ -132,6 +144,7 @@ class MultiHeadD4PGLoss(LossModule):
         self.convert_to_functional(actor_network, "actor_network", create_target_params=delay_actor)
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
         self.actor_in_keys = list(actor_network.in_keys)
+        self.action_key = actor_network.out_keys[0]
         self.value_in_keys = list(value_network.in_keys)
 
     def _value_logits(self, td: TensorDictBase, params: TensorDictBase) -> torch.Tensor:
@@ -160,6 +173,11 @@ class MultiHeadD4PGLoss(LossModule):
             *self.actor_in_keys, *self.value_in_keys, strict=False
         )
         next_td = self._act(next_td, self.target_actor_network_params)
+        if self.policy_noise > 0:
+            action = next_td.get(self.action_key)
+            noise = torch.randn_like(action) * self.policy_noise
+            noise = noise.clamp(-self.noise_clip, self.noise_clip)
+            next_td.set(self.action_key, (action + noise).clamp(-1.0, 1.0))
         next_logits = self._value_logits(next_td, self.target_value_network_params)
         self._check_heads(next_logits)
         batch = tensordict.batch_size

@@ -113,6 +113,7 @@ def make_learner(cfg: TrainConfig, obs_dim: int, action_dim: int) -> Learner:
         v_min=cfg.v_min,
         v_max=cfg.v_max,
         gamma=cfg.gamma,
+        policy_noise=cfg.policy_noise,
     )
     loss.set_keys(terminated=keys.NSTEP_TERMINATED)
     return Learner(

@@ -50,6 +50,8 @@ class TrainConfig:
     n_steps: int = 5
     gamma: float = 0.99
     target_update_period: int = 100
+    # TD3 target policy smoothing (MultiHeadD4PGLoss policy_noise); 0 = D4PG as published.
+    policy_noise: float = 0.0
     prioritized: bool = True
     alpha: float = 0.6
     beta: float = 0.4
@@ -162,7 +164,8 @@ def validate(cfg: TrainConfig) -> None:
         if getattr(cfg, name) < 1:
             problems.append(f"{name}={getattr(cfg, name)} must be >= 1")
     non_negative = (
-        "init_random_frames reward_delay eval_episodes sigma utd_ratio surprise_scale icm_eta"
+        "init_random_frames reward_delay eval_episodes sigma policy_noise utd_ratio surprise_scale "
+        "icm_eta"
     )
     for name in non_negative.split():
         if not getattr(cfg, name) >= 0:
