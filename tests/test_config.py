@@ -56,6 +56,8 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"lam": (2.0, 2.0, 1.0)}, "lam=(2.0, 2.0, 1.0) must be"),
         ({"gamma": 1.5}, "gamma=1.5 must be in (0, 1]"),
         ({"v_min": 10.0, "v_max": -10.0}, "v_min=10.0 must be < v_max=-10.0"),
+        ({"penalty_v_max": -20.0}, "penalty_v_max=-20.0 must be > v_min=-10.0"),
+        ({"policy_noise": -0.1}, "policy_noise=-0.1 must be >= 0"),
         ({"collector": "async"}, "collector='async' is not one of"),
         ({"wandb_mode": "cloud"}, "wandb_mode='cloud' is not one of"),
         ({"lr_actor": 0.0}, "lr_actor=0.0 must be > 0"),

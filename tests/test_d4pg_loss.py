@@ -88,6 +88,22 @@ def test_target_policy_smoothing_perturbs_each_targets_action():
         _loss(policy_noise=-0.1)
 
 
+def test_per_head_support_caps_the_penalty_critic_at_zero():
+    # Task head on [-10, 10], penalty head on [-10, 0] (21 atoms: 0.5 apart). A terminal penalty
+    # of -2 lands on the penalty head's atom 16; the penalty critic's value is <= 0 whatever its
+    # logits, so the actor can never be promised a positive penalty value.
+    loss = _loss(v=(-10.0, [10.0, 0.0]))
+    target = loss.target_distribution(_batch(reward=1.0, penalty=-2.0))
+    assert target[0, 0, 11].item() == pytest.approx(1.0)
+    assert target[0, 1, 16].item() == pytest.approx(1.0)
+    values = loss(_batch())["value_penalty"]
+    assert -10.0 <= values.item() <= 0.0
+    with pytest.raises(ValueError, match=r"v_max=\[10.0\] needs one value per head \(2 heads\)"):
+        _loss(v=(-10.0, [10.0]))
+    with pytest.raises(ValueError, match="need v_min < v_max for every head"):
+        _loss(v=(-10.0, [10.0, -20.0]))
+
+
 def test_bootstrap_uses_gamma_to_the_n():
     # Non-terminal, n = 3 steps, gamma = 0.5: discount 0.125; the target mean is
     # r + 0.125 * E[Z'] for each head (no clipping inside [-10, 10]).

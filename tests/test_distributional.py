@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from gentlerl.functional.distributional import categorical_projection
+from gentlerl.functional.distributional import categorical_projection, categorical_support
 
 SUPPORT3 = dict(v_min=-1.0, v_max=1.0)  # atoms at -1, 0, 1; delta z = 1
 
@@ -50,6 +50,22 @@ def test_mass_and_mean_are_conserved_inside_the_support():
     torch.testing.assert_close(out.sum(-1), torch.ones(64, 4))
     expected_mean = reward + 0.9 * (probs * support).sum(-1)
     torch.testing.assert_close((out * support).sum(-1), expected_mean, atol=1e-4, rtol=1e-4)
+
+
+def test_a_support_per_head():
+    # Head 0 on [-1, 1] (atoms -1, 0, 1), head 1 on [-2, 0] (atoms -2, -1, 0). The same next
+    # distribution [0, 1, 0] with r = -0.5, d = 1: head 0's atom 0 moves to -0.5 (half on -1,
+    # half on 0); head 1's atom -1 moves to -1.5 (half on -2, half on -1).
+    v_min, v_max = torch.tensor([-1.0, -2.0]), torch.tensor([1.0, 0.0])
+    torch.testing.assert_close(
+        categorical_support(v_min, v_max, 3), torch.tensor([[-1.0, 0.0, 1.0], [-2.0, -1.0, 0.0]])
+    )
+    probs = torch.tensor([[0.0, 1.0, 0.0]]).expand(2, 3)
+    out = categorical_projection(probs, torch.tensor(-0.5), torch.tensor(1.0), v_min, v_max)
+    torch.testing.assert_close(out, torch.tensor([[0.5, 0.5, 0.0], [0.5, 0.5, 0.0]]))
+    # A reward of +1 is clipped at each head's own top: atom 1 for head 0, atom 0 for head 1.
+    out = categorical_projection(probs, torch.tensor(1.0), torch.tensor(0.0), v_min, v_max)
+    torch.testing.assert_close(out, torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]))
 
 
 @pytest.mark.parametrize(("v_min", "v_max"), [(1.0, 1.0), (2.0, -2.0), (float("nan"), 1.0)])

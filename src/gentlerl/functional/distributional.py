@@ -2,19 +2,26 @@
 
 from __future__ import annotations
 
-import math
-
 import torch
 
-__all__ = ["categorical_projection"]
+__all__ = ["categorical_projection", "categorical_support"]
+
+
+def categorical_support(v_min: torch.Tensor, v_max: torch.Tensor, num_atoms: int) -> torch.Tensor:
+    r"""Atoms :math:`z_j = v_{min} + j\,(v_{max} - v_{min}) / (N - 1)`, ``[..., num_atoms]``.
+
+    ``v_min`` / ``v_max`` are tensors of any (matching) shape ``[...]``: one support per entry.
+    """
+    steps = torch.arange(num_atoms, device=v_min.device, dtype=v_min.dtype)
+    return v_min.unsqueeze(-1) + (v_max - v_min).unsqueeze(-1) / (num_atoms - 1) * steps
 
 
 def categorical_projection(
     next_probs: torch.Tensor,
     reward: torch.Tensor,
     discount: torch.Tensor,
-    v_min: float,
-    v_max: float,
+    v_min: float | torch.Tensor,
+    v_max: float | torch.Tensor,
 ) -> torch.Tensor:
     r"""Project the distribution of ``reward + discount * Z'`` onto the fixed support of ``Z'``.
 
@@ -35,8 +42,9 @@ def categorical_projection(
         discount: ``[...]`` bootstrap discount, already holding :math:`\gamma^n` and the
             not-terminated mask (0 for terminal transitions), broadcastable to
             ``next_probs.shape[:-1]``.
-        v_min: lowest atom of the support.
-        v_max: highest atom of the support.
+        v_min: lowest atom of the support: a float, or a tensor broadcastable to
+            ``next_probs.shape[:-1]`` for a support per distribution (e.g. one per critic head).
+        v_max: highest atom of the support, same shapes as ``v_min``.
 
     Returns:
         ``[..., N]`` projected target probabilities (no gradient flows through the atom indices).
@@ -47,14 +55,16 @@ def categorical_projection(
             "next_probs needs at least 2 atoms on its last dim, "
             f"got shape {tuple(next_probs.shape)}"
         )
-    if not (math.isfinite(v_min) and math.isfinite(v_max) and v_max > v_min):
+    v_min = torch.as_tensor(v_min, dtype=next_probs.dtype, device=next_probs.device)
+    v_max = torch.as_tensor(v_max, dtype=next_probs.dtype, device=next_probs.device)
+    if not (v_min.isfinite().all() and v_max.isfinite().all() and (v_max > v_min).all()):
         raise ValueError(f"need finite v_min < v_max, got v_min={v_min}, v_max={v_max}")
+    v_min, v_max = torch.broadcast_tensors(v_min, v_max)
+    support = categorical_support(v_min, v_max, num_atoms)
+    v_min, v_max = v_min.unsqueeze(-1), v_max.unsqueeze(-1)
     delta = (v_max - v_min) / (num_atoms - 1)
-    support = torch.linspace(
-        v_min, v_max, num_atoms, device=next_probs.device, dtype=next_probs.dtype
-    )
     moved = reward.unsqueeze(-1) + discount.unsqueeze(-1) * support
-    moved, probs = torch.broadcast_tensors(moved.clamp(v_min, v_max), next_probs)
+    moved, probs = torch.broadcast_tensors(torch.clamp(moved, v_min, v_max), next_probs)
     position = (moved - v_min) / delta
     lower = position.floor().clamp_(0, num_atoms - 1)
     upper = position.ceil().clamp_(0, num_atoms - 1)

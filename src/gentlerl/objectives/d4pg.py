@@ -18,7 +18,7 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import _cache_values
 
 from gentlerl import keys
-from gentlerl.functional import categorical_projection
+from gentlerl.functional import categorical_projection, categorical_support
 
 
 class MultiHeadD4PGLoss(LossModule):
@@ -50,7 +50,10 @@ class MultiHeadD4PGLoss(LossModule):
         reward_keys: the reward components, in critic-head order (read under ``"next"``).
         non_episodic_keys: components (a subset of ``reward_keys``) whose bootstrap ignores
             termination, e.g. the intrinsic ``penalty_surprise``.
-        v_min, v_max: support of the categorical value distribution (paper: [-100, 100]).
+        v_min, v_max: support of the categorical value distributions (paper: [-100, 100]); a float
+            for every head, or one value per head (in ``reward_keys`` order), e.g. ``v_max=0`` for
+            a head whose reward is never positive, such as the impact penalty: its critic then
+            cannot over-estimate above the best possible value (no penalty at all).
         gamma: discount per step; the bootstrap uses ``gamma ** steps_to_next_obs``.
         policy_noise: std of the Gaussian noise added to the target actor's actions (TD3's target
             policy smoothing, Fujimoto et al. 2018; TorchRL ``TD3Loss``), clipped to
@@ -109,8 +112,8 @@ class MultiHeadD4PGLoss(LossModule):
         *,
         reward_keys: Sequence[NestedKey],
         non_episodic_keys: Sequence[NestedKey] = (),
-        v_min: float = -100.0,
-        v_max: float = 100.0,
+        v_min: float | Sequence[float] = -100.0,
+        v_max: float | Sequence[float] = 100.0,
         gamma: float = 0.99,
         policy_noise: float = 0.0,
         noise_clip: float = 0.5,
@@ -123,14 +126,18 @@ class MultiHeadD4PGLoss(LossModule):
             raise ValueError("reward_keys must name at least one reward component, got []")
         if not 0.0 <= gamma <= 1.0:
             raise ValueError(f"gamma must be in [0, 1], got {gamma}")
-        if not v_max > v_min:
-            raise ValueError(f"need v_min < v_max, got v_min={v_min}, v_max={v_max}")
         if policy_noise < 0 or noise_clip < 0:
             raise ValueError(
                 f"policy_noise and noise_clip must be >= 0, got {policy_noise} and {noise_clip}"
             )
         self.policy_noise, self.noise_clip = float(policy_noise), float(noise_clip)
         self.reward_keys = list(reward_keys)
+        k = len(self.reward_keys)
+        bounds = [_per_head(v, k, name) for v, name in ((v_min, "v_min"), (v_max, "v_max"))]
+        if not all(lo < hi for lo, hi in zip(*bounds, strict=True)):
+            raise ValueError(f"need v_min < v_max for every head, got v_min={v_min}, v_max={v_max}")
+        self.register_buffer("v_min", torch.tensor(bounds[0]), persistent=False)
+        self.register_buffer("v_max", torch.tensor(bounds[1]), persistent=False)
         unknown = [k for k in non_episodic_keys if k not in self.reward_keys]
         if unknown:
             raise ValueError(
@@ -138,7 +145,7 @@ class MultiHeadD4PGLoss(LossModule):
             )
         episodic = [k not in non_episodic_keys for k in self.reward_keys]
         self.register_buffer("episodic", torch.tensor(episodic), persistent=False)
-        self.v_min, self.v_max, self.gamma = float(v_min), float(v_max), float(gamma)
+        self.gamma = float(gamma)
         self.use_prioritized_weights = use_prioritized_weights
         self.reduction = "mean"
         self.convert_to_functional(actor_network, "actor_network", create_target_params=delay_actor)
@@ -156,8 +163,8 @@ class MultiHeadD4PGLoss(LossModule):
             return self.actor_network(td)
 
     def _support(self, logits: torch.Tensor) -> torch.Tensor:
-        n = logits.shape[-1]
-        return torch.linspace(self.v_min, self.v_max, n, device=logits.device, dtype=logits.dtype)
+        """``[K, num_atoms]``: the atoms of each head."""
+        return categorical_support(self.v_min, self.v_max, logits.shape[-1]).to(logits.dtype)
 
     def _check_heads(self, logits: torch.Tensor) -> None:
         if logits.shape[-2] != len(self.reward_keys):
@@ -227,3 +234,13 @@ class MultiHeadD4PGLoss(LossModule):
     @_cache_values
     def _cached_detached_value_params(self) -> TensorDictBase:
         return self.value_network_params.detach()
+
+
+def _per_head(value: float | Sequence[float], num_heads: int, name: str) -> list[float]:
+    """``value`` for each of ``num_heads`` heads (a float is shared by all of them)."""
+    if isinstance(value, int | float):
+        return [float(value)] * num_heads
+    values = [float(v) for v in value]
+    if len(values) != num_heads:
+        raise ValueError(f"{name}={list(value)} needs one value per head ({num_heads} heads)")
+    return values

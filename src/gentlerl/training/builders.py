@@ -111,7 +111,7 @@ def make_learner(cfg: TrainConfig, obs_dim: int, action_dim: int) -> Learner:
         reward_keys=cfg.reward_keys,
         non_episodic_keys=[] if cfg.episodic_intrinsic else _intrinsic(cfg.reward_keys),
         v_min=cfg.v_min,
-        v_max=cfg.v_max,
+        v_max=[_head_v_max(cfg, k) for k in cfg.reward_keys],
         gamma=cfg.gamma,
         policy_noise=cfg.policy_noise,
     )
@@ -170,6 +170,12 @@ def make_collector(
     return MultiSyncCollector(
         [env_factory] * cfg.num_workers, policy, cat_results="stack", **common
     )
+
+
+def _head_v_max(cfg: TrainConfig, reward_key: str) -> float:
+    if reward_key == keys.PENALTY and cfg.penalty_v_max is not None:
+        return cfg.penalty_v_max
+    return cfg.v_max
 
 
 def _intrinsic(reward_keys: list[str]) -> list[str]:

@@ -47,6 +47,10 @@ class TrainConfig:
     # [-100, 100] (atoms 2 apart) the touch policy kept collapsing (measured, see README).
     v_min: float = -10.0
     v_max: float = 10.0
+    # Top of the impact-penalty critic's support (None: v_max). The penalty is never positive
+    # (eq. 4), so 0 is the true upper bound; it stops that critic from over-estimating (measured:
+    # with [-10, 10] its mean value reached +3.3 while the actor lost the task, docs/REPRODUCTION.md).
+    penalty_v_max: float | None = None
     n_steps: int = 5
     gamma: float = 0.99
     target_update_period: int = 100
@@ -184,6 +188,8 @@ def validate(cfg: TrainConfig) -> None:
         problems.append(f"gamma={cfg.gamma} must be in (0, 1]")
     if not cfg.v_min < cfg.v_max:
         problems.append(f"v_min={cfg.v_min} must be < v_max={cfg.v_max}")
+    if cfg.penalty_v_max is not None and not cfg.v_min < cfg.penalty_v_max:
+        problems.append(f"penalty_v_max={cfg.penalty_v_max} must be > v_min={cfg.v_min}")
     if not 0.0 <= cfg.alpha <= 1.0 or not 0.0 <= cfg.beta <= 1.0:
         problems.append(f"alpha={cfg.alpha} and beta={cfg.beta} must be in [0, 1]")
     if problems:
