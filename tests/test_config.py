@@ -133,3 +133,12 @@ def test_learner_cuts_the_bootstrap_of_intrinsic_heads_only_at_paper_scale(scale
     learner = make_learner(make_config(scale), obs_dim=63, action_dim=20)
     assert learner.loss.reward_keys == ["reward", "penalty", "penalty_surprise"]
     assert learner.loss.episodic.tolist() == episodic
+
+
+@pytest.mark.parametrize(
+    ("scale", "v_max"), [("cpu", [10.0, 0.0, 10.0]), ("paper", [100.0, 100.0, 100.0])]
+)
+def test_penalty_critic_support_tops_at_zero_at_cpu_scale(scale, v_max):
+    learner = make_learner(make_config(scale), obs_dim=63, action_dim=20)
+    assert learner.loss.v_max.tolist() == v_max  # reward, penalty, penalty_surprise
+    assert learner.loss.v_min.tolist() == [make_config(scale).v_min] * 3
