@@ -244,9 +244,8 @@ def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_default_recipe_learns_touch(tmp_path):
     """Issue §5: the default recipe (touch, r+rf+rsp, cpu scale) reaches >= 0.8 evaluation
-    success (10 noise-free episodes) on the 2-core CPU. Measured on 3 seeds: every seed reaches
-    1.0 by 20k frames, but only one holds it (see docs/REPRODUCTION.md), so only the peak after
-    the first updates is asserted."""
+    success (10 noise-free episodes) on the 2-core CPU, and still succeeds at the end of the run.
+    Measured on 3 seeds x 100k frames: every seed reaches 1.0 by 15k frames (docs/REPRODUCTION.md)."""
     cfg = make_config(
         run_dir=str(tmp_path), wandb_mode="disabled", progress=False, total_frames=30_000
     )
@@ -256,3 +255,4 @@ def test_default_recipe_learns_touch(tmp_path):
         e["success_rate"] for e in trainer.eval_history if e["frames"] > cfg.init_random_frames
     ]
     assert max(learned) >= 0.8
+    assert learned[-1] >= 0.8
