@@ -4,7 +4,7 @@
 #   bash recipes/reproduce.sh [--scale cpu|paper] [--workers N] [--out DIR] [--figures DIR]
 #
 # cpu (default): 57 runs (no-reward exploration 15, touch 21, fragile 21; 3 seeds; the lambda'_2
-# sweep and ICM included) of 25k env frames each, 2 at a time: measured 50 min on the 2-core CPU
+# sweep and ICM included) of 25k env frames each, 2 at a time: measured 52 min on the 2-core CPU
 # (~243 env frames/s per process, 2026-11-25), inside the 2 h budget.
 # paper: the same grids at the paper's scale (500k frames, batch 256, 1M buffer, ...); about 1 h
 # per run on this CPU, so plan for a cluster or days.
