@@ -108,10 +108,7 @@ class Trainer:
     # -- state ---------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         return {
-            "config": self.cfg.to_dict(),
-            "obs_dim": self.obs_dim,
-            "action_dim": self.action_dim,
-            "actor": self.learner.actor.state_dict(),
+            **self._policy_state(),
             "loss": self.learner.loss.state_dict(),
             "actor_optim": self.learner.actor_optim.state_dict(),
             "critic_optim": self.learner.critic_optim.state_dict(),
@@ -126,6 +123,15 @@ class Trainer:
             "eval_history": list(self.eval_history),
             "best_eval": self.best_eval,
             "rng": _rng_state(),
+        }
+
+    def _policy_state(self) -> dict[str, Any]:
+        """What :func:`~gentlerl.training.checkpoint.load_policy` reads: config, sizes, actor."""
+        return {
+            "config": self.cfg.to_dict(),
+            "obs_dim": self.obs_dim,
+            "action_dim": self.action_dim,
+            "actor": self.learner.actor.state_dict(),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -322,14 +328,9 @@ class Trainer:
         if self.best_eval is not None and rank(result) <= rank(self.best_eval):
             return
         self.best_eval = dict(result)
-        policy = {
-            "config": self.cfg.to_dict(),
-            "obs_dim": self.obs_dim,
-            "action_dim": self.action_dim,
-            "actor": self.learner.actor.state_dict(),
-            "eval": self.best_eval,
-        }
-        save_checkpoint(self.run_dir / BEST_POLICY, policy)
+        save_checkpoint(
+            self.run_dir / BEST_POLICY, {**self._policy_state(), "eval": self.best_eval}
+        )
 
 
 def _cut(tail: TensorDictBase | None) -> TensorDictBase | None:
