@@ -1,0 +1,111 @@
+"""Golden losses: a fixed-seed toy-env run logs the same first 200 updates' losses as recorded.
+
+The fixture ``tests/data/golden_losses.json`` was written by this file's ``record`` (run
+``python -m tests.test_golden``) before the training code was reorganised; a refactor that keeps
+behaviour must reproduce it. Floating-point results depend on the machine and the torch build, so
+regenerate the fixture (and say why in the commit) when either changes.
+"""
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from gentlerl.training import make_config, train
+from tests.toy_env import ToyHandEnv
+
+FIXTURE = Path(__file__).parent / "data" / "golden_losses.json"
+#: 200 updates (utd 0.5 over the 400 frames after 200 random ones), 2-frame batches: one
+#: update and one log row per batch.
+LOGGED = 200
+#: Every value the run depends on is spelled out, so later changes of defaults do not move it.
+CONFIG = dict(
+    seed=0,
+    total_frames=600,
+    frames_per_batch=2,
+    init_random_frames=200,
+    utd_ratio=0.5,
+    batch_size=32,
+    buffer_size=200_000,
+    lr_actor=1e-4,
+    lr_critic=3e-4,
+    actor_hidden=(32, 32),
+    critic_hidden=(32, 32),
+    num_atoms=11,
+    v_min=-10.0,
+    v_max=10.0,
+    penalty_v_max=0.0,
+    n_steps=5,
+    gamma=0.99,
+    target_update_period=100,
+    policy_noise=0.0,
+    prioritized=True,
+    alpha=0.6,
+    beta=0.4,
+    sigma=0.3,
+    lam=(2.0, 2.0),
+    lam_prime=(2.0, 2.0),
+    reward_delay=100,
+    dynamics_target_period=20,
+    penalty_target_period=10,
+    ensemble_size=5,
+    model_hidden=16,
+    model_batch_size=16,
+    model_buffer_size=100_000,
+    lr_model=1e-3,
+    surprise_scale=1.0,
+    surprise_nll_floor=0.0,
+    icm_eta=1.0,
+    episodic_intrinsic=False,
+    eval_every_frames=600,
+    eval_episodes=1,
+    log_every_updates=1,
+    checkpoint_every_frames=600,
+    wandb_mode="disabled",
+    progress=False,
+    num_threads=1,
+)
+#: The penalty-surprise variant runs by default; the other two (dynamics ensemble, ICM) are slow.
+VARIANTS = (
+    "r+rf+rsp",
+    pytest.param("r+rf+rs", marks=pytest.mark.slow),
+    pytest.param("r+icm", marks=pytest.mark.slow),
+)
+
+
+def golden_run(run_dir: Path, variant: str) -> dict[str, list[float]]:
+    """Every ``train/loss_*`` and ``train/model_*`` scalar of one update per log row."""
+    cfg = make_config(**CONFIG, variant=variant, run_dir=str(run_dir))
+    train(cfg, ToyHandEnv)
+    out = {}
+    for path in sorted((run_dir / "logs" / "scalars" / "train").glob("*.csv")):
+        if path.stem.startswith(("loss_", "model_")):
+            out[path.stem] = [float(v) for _, v in csv.reader(path.open())]
+    return out
+
+
+def record(root: Path) -> None:
+    names = ("r+rf+rsp", "r+rf+rs", "r+icm")
+    data = {v: golden_run(root / v.replace("+", "_"), v) for v in names}
+    FIXTURE.parent.mkdir(parents=True, exist_ok=True)
+    FIXTURE.write_text(json.dumps(data, indent=1) + "\n")
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_first_200_logged_losses_match_the_recorded_run(tmp_path, variant):
+    expected = json.loads(FIXTURE.read_text())[variant]
+    got = golden_run(tmp_path, variant)
+    assert sorted(got) == sorted(expected)
+    for name, values in expected.items():
+        assert len(values) == len(got[name]) == LOGGED, name
+        assert got[name] == pytest.approx(values, rel=1e-5, abs=1e-6), name
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        record(Path(tmp))
+    sys.exit(0)
