@@ -1,10 +1,12 @@
-"""Videos of evaluation rollouts: ``python -m gentlerl.video CHECKPOINT -o out.mp4``.
+"""Videos of evaluation rollouts: ``gentlerl video CHECKPOINT -o out.mp4``.
 
 As in the paper's figure of the touch task: each fingertip is coloured by its impact, from yellow
-(about 0 N) to red (>= 10 N), and the block turns green on success and red when it breaks.
+(about 0 N) to red (>= 10 N); the block turns blue on success and black when it breaks (both stand
+out against the scene's green background and the yellow-red fingertips). A panel under each frame
+shows every fingertip's impact as a bar and a number in N, readable at the default 240 px.
 Rendering is offscreen and needs OSMesa (``apt-get install libosmesa6``; gentlerl selects
-``MUJOCO_GL=osmesa`` itself on a headless machine when the library is there). ``.mp4`` needs the
-``imageio-ffmpeg`` package; ``.gif`` works with the installed Pillow.
+``MUJOCO_GL=osmesa`` itself on a headless machine when the library is there). ``.mp4`` is written
+with the ``imageio-ffmpeg`` package (a dependency, it ships its own ffmpeg), ``.gif`` with Pillow.
 """
 
 from __future__ import annotations
@@ -24,13 +26,63 @@ from gentlerl.envs.assets import FINGERTIPS
 from gentlerl.functional import impact
 
 FULL_RED_AT = 10.0  # N
-BLOCK_RGBA = {"success": (0.2, 0.8, 0.2, 1.0), "broken": (0.9, 0.1, 0.1, 1.0)}
+# Blue and black: the scene's background is green (gymnasium-robotics' skybox) and the fingertips
+# run from yellow to red, so neither green nor red would stand out.
+BLOCK_RGBA = {"success": (0.1, 0.3, 1.0, 1.0), "broken": (0.05, 0.05, 0.05, 1.0)}
+PANEL_BG = (32, 32, 32)
 
 
 def impact_rgba(m: float) -> tuple[float, float, float, float]:
     """Yellow (0 N) to red (>= 10 N), linear in the impact."""
     level = min(max(m / FULL_RED_AT, 0.0), 1.0)
     return (1.0, 1.0 - level, 0.0, 1.0)
+
+
+def panel_height(size: int) -> int:
+    """Rows of the impact panel under a ``size``-pixel frame: >= size / 5, total a multiple of 16.
+
+    Video encoders work on 16-pixel blocks; a frame that is not a multiple is rescaled (blurred).
+    """
+    return -(-(size + max(size // 5, 24)) // 16) * 16 - size
+
+
+def draw_impact_panel(
+    frame: np.ndarray, impacts: Sequence[float], success: bool = False, broken: bool = False
+) -> np.ndarray:
+    """``frame`` ``[H, W, 3]`` with a panel appended below: per fingertip a label, a bar filled to
+    ``impact / 10 N`` in the fingertip's colour and the impact in N; the outcome, if any, on top.
+    """
+    from PIL import Image, ImageDraw, ImageFont
+
+    if len(impacts) != len(FINGERTIPS):
+        raise ValueError(f"need one impact per fingertip {FINGERTIPS}, got {len(impacts)}")
+    height, width = frame.shape[:2]
+    rows = panel_height(width)
+    font = ImageFont.load_default(size=max(width // 20, 8))
+    image = Image.new("RGB", (width, height + rows), PANEL_BG)
+    image.paste(Image.fromarray(frame), (0, 0))
+    draw = ImageDraw.Draw(image)
+    column = width / len(FINGERTIPS)
+    bar_top, bar_bottom = height + rows * 0.4, height + rows * 0.62
+    for i, (name, m) in enumerate(zip(FINGERTIPS, impacts, strict=True)):
+        left, right = i * column + 3, (i + 1) * column - 3
+        colour = tuple(int(255 * c) for c in impact_rgba(float(m))[:3])
+        fill = left + (right - left) * min(max(float(m) / FULL_RED_AT, 0.0), 1.0)
+        draw.rectangle((left, bar_top, right, bar_bottom), outline=(160, 160, 160))
+        if fill > left:
+            draw.rectangle((left, bar_top, fill, bar_bottom), fill=colour)
+        draw.text(((left + right) / 2, height + 2), name, fill="white", font=font, anchor="ma")
+        label = f"{float(m):.1f} N"
+        draw.text(
+            ((left + right) / 2, height + rows - 2), label, fill="white", font=font, anchor="md"
+        )
+    state = "broken" if broken else "success" if success else None
+    if state:
+        colour = tuple(int(255 * c) for c in BLOCK_RGBA[state][:3])
+        box = draw.textbbox((4, 4), state, font=font)
+        draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=colour)
+        draw.text((4, 4), state, fill="white", font=font)
+    return np.asarray(image)
 
 
 class ImpactPainter:
@@ -54,22 +106,34 @@ class ImpactPainter:
 
 @torch.no_grad()
 def record_rollouts(
-    env: HandEnv, actor: TensorDictModule, episodes: int = 1, size: int = 240, hold: int = 10
+    env: HandEnv,
+    actor: TensorDictModule,
+    episodes: int = 1,
+    size: int = 240,
+    hold: int = 10,
+    panel: bool = True,
 ) -> list[np.ndarray]:
-    """Frames (uint8 [H, W, 3]) of deterministic rollouts; the last frame is held ``hold`` times."""
+    """Frames (uint8 ``[H, W, 3]``) of deterministic rollouts; the last frame is held ``hold`` times.
+
+    With ``panel`` each frame gets :func:`draw_impact_panel` (``H = size + panel_height(size)``).
+    """
     painter = ImpactPainter(env)
     frames = []
+
+    def frame(m: np.ndarray, success: bool, broken: bool) -> np.ndarray:
+        painter.paint(m, success, broken)
+        image = env.render(size, size)
+        return draw_impact_panel(image, m, success, broken) if panel else image
+
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(episodes):
             td = env.reset()
-            painter.paint(np.zeros(len(FINGERTIPS)), False, False)
-            frames.append(env.render(size, size))
+            frames.append(frame(np.zeros(len(FINGERTIPS)), False, False))
             while True:  # the env ends every episode (time limit, success or break)
                 td = env.step(actor(td))
                 nxt = td["next"]
                 m = impact(td[keys.TOUCH], nxt[keys.TOUCH]).numpy()
-                painter.paint(m, bool(nxt[keys.SUCCESS]), bool(nxt[keys.BROKEN]))
-                frames.append(env.render(size, size))
+                frames.append(frame(m, bool(nxt[keys.SUCCESS]), bool(nxt[keys.BROKEN])))
                 if nxt[keys.DONE].item():
                     break
                 td = nxt
@@ -78,44 +142,69 @@ def record_rollouts(
 
 
 def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: int = 20) -> Path:
-    """Write ``.mp4`` (needs imageio-ffmpeg) or ``.gif``; the control rate is 20 Hz."""
+    """Write ``.mp4`` (H.264 through imageio-ffmpeg) or ``.gif``, atomically; 20 Hz = control rate.
+
+    MP4 frames are padded to even sizes (H.264's 4:2:0 chroma needs them), never rescaled.
+    """
     import imageio.v2 as imageio
 
     path = Path(path)
     if path.suffix not in (".mp4", ".gif"):
         raise ValueError(f"video path must end in .mp4 or .gif, got {path}")
+    if not frames:
+        raise ValueError("no frames to write")
     path.parent.mkdir(parents=True, exist_ok=True)
-    if path.suffix == ".gif":
-        imageio.mimsave(path, list(frames), duration=1000 / fps, loop=0)
-    else:
-        try:
-            imageio.mimsave(path, list(frames), fps=fps)
-        except (ImportError, ValueError) as err:
-            raise RuntimeError(
-                f"writing {path} needs `pip install imageio-ffmpeg` (or use .gif)"
-            ) from err
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    try:
+        if path.suffix == ".gif":
+            imageio.mimsave(tmp, list(frames), duration=1000 / fps, loop=0)
+        else:
+            height, width = frames[0].shape[:2]
+            pad = ((0, height % 2), (0, width % 2), (0, 0))
+            even = [np.pad(f, pad, mode="edge") for f in frames]
+            imageio.mimsave(tmp, even, fps=fps, macro_block_size=1, quality=8)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    from gentlerl.training.checkpoint import load_policy
-
+def build_parser(prog: str = "gentlerl video") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gentlerl.video", description=__doc__.splitlines()[0]
+        prog=prog,
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("checkpoint", help="a run's checkpoint.pt or best_policy.pt")
-    parser.add_argument("-o", "--out", default="rollout.gif", help=".mp4 or .gif")
-    parser.add_argument("--episodes", type=int, default=2)
-    parser.add_argument("--size", type=int, default=240)
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    parser.add_argument("-o", "--out", default="rollout.mp4", help="output file, .mp4 or .gif")
+    parser.add_argument("--episodes", type=int, default=2, help="evaluation episodes to record")
+    parser.add_argument("--size", type=int, default=240, help="rendered frame width in pixels")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the env (block position)")
+    parser.add_argument("--fps", type=int, default=20, help="frames per second (20 = real time)")
+    parser.add_argument(
+        "--no-panel", action="store_true", help="leave out the per-fingertip impact panel"
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> None:
+    """Record a checkpoint's deterministic rollouts to a video file."""
+    from gentlerl.training.checkpoint import load_policy
+
+    args = build_parser(prog).parse_args(argv)
+    if args.episodes < 1 or args.size < 16 or args.fps < 1:
+        raise SystemExit(
+            f"--episodes and --fps must be >= 1 and --size >= 16, got {args.episodes}, "
+            f"{args.fps} and {args.size}"
+        )
     cfg, actor = load_policy(args.checkpoint)
     env = make_env(cfg.task, seed=args.seed, **cfg.env_kwargs)
     try:
-        print(write_video(record_rollouts(env, actor, args.episodes, args.size), args.out))
+        frames = record_rollouts(env, actor, args.episodes, args.size, panel=not args.no_panel)
+        print(write_video(frames, args.out, fps=args.fps))
     finally:
         env.dm_env.physics.free()  # release the GL context before interpreter shutdown
 
 
 if __name__ == "__main__":
-    main()
+    main(prog="python -m gentlerl.video")
