@@ -1,10 +1,11 @@
-"""Figures from run directories in the training loop's layout (synthetic logs with known numbers)."""
+"""Runs read from the training loop's layout and their summary (synthetic logs, known numbers)."""
 
 import numpy as np
 import pytest
 import yaml
 
-from gentlerl.plot import find_runs, format_table, main, max_impacts, seed_band, summary_table
+from gentlerl.figures import main
+from gentlerl.plot import find_runs, format_table, max_impacts, seed_band, summary_table
 
 
 def _fake_run(root, variant, seed, lam2, success, impacts, **config):

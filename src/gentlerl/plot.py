@@ -1,35 +1,23 @@
-"""Paper-style figures from run directories: ``python -m gentlerl.plot RUN_DIR... -o OUT``.
+"""Runs and their numbers: what ``gentlerl plot`` (:mod:`gentlerl.figures`) draws and tabulates.
 
 Reads the layout written by :mod:`gentlerl.training` (``config.yaml``, TorchRL ``CSVLogger``
 scalars under ``logs/scalars``, ``eval_episodes.csv``); a ``RUN_DIR`` may also be a folder of
-runs (searched recursively). Runs that differ only by seed are grouped: curves show the mean and
-the min-max spread over seeds. Figures (PNG):
-
-- ``impact_histograms.png`` — maximum impact per training rollout (N) after the random warm-up
-  (``init_random_frames``), rollouts with zero impact ignored, one panel per variant, lambda'_2
-  values overlaid (paper Figs. 3 and 5);
-- ``learning_curves.png`` — evaluation success rate and return vs env frames (paper Fig. 4);
-- ``reward_components.png`` — mean of each reward component in the sampled batches vs frames,
-  with a dashed line where the intrinsic rewards start (paper Fig. 6).
+runs (searched recursively). Runs that differ only by seed are grouped (:func:`group_runs`).
+``python -m gentlerl.plot RUN_DIR... -o OUT`` is ``gentlerl plot``.
 """
 
 from __future__ import annotations
 
-import argparse
-import csv
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import yaml  # noqa: E402
+import numpy as np
+import yaml
 
 Series = tuple[np.ndarray, np.ndarray]
+EVAL_SUCCESS = "eval/success_rate"
 
 
 @dataclass
@@ -121,79 +109,8 @@ def max_impacts(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
     return values if with_zeros else values[values > 0]
 
 
-def plot_impact_histograms(runs: Sequence[Run], out: Path, bins: int = 30) -> Path:
-    by_variant: dict[str, dict[str, list[Run]]] = defaultdict(lambda: defaultdict(list))
-    for run in runs:
-        by_variant[f"{run.config.get('task')}: {run.config.get('variant')}"][run.label].append(run)
-    fig, axes = plt.subplots(1, len(by_variant), figsize=(4 * len(by_variant), 3), squeeze=False)
-    everything = max_impacts(runs)
-    # A few very hard hits would squeeze the bulk into one bin: the last bin holds all >= p98.
-    top = max(float(np.percentile(everything, 98)) if len(everything) else 1.0, 1e-3)
-    edges = np.linspace(0, top, bins + 1)
-    for ax, (title, labelled) in zip(axes[0], sorted(by_variant.items()), strict=True):
-        for label, group in sorted(labelled.items()):
-            ax.hist(np.minimum(max_impacts(group), top), bins=edges, alpha=0.6, label=label)
-        xlabel = f"max impact per rollout (N), last bin >= {top:.1f}"
-        ax.set(title=title, xlabel=xlabel, ylabel="rollouts")
-        ax.legend(fontsize=7)
-    return _save(fig, out / "impact_histograms.png")
-
-
-def plot_learning_curves(runs: Sequence[Run], out: Path) -> Path:
-    metrics = [("eval/success_rate", "success rate"), ("eval/return", "return")]
-    fig, axes = plt.subplots(1, len(metrics), figsize=(10, 3.5))
-    for ax, (name, ylabel) in zip(axes, metrics, strict=True):
-        for (task, label), group in group_runs(runs).items():
-            grid, mean, low, high = seed_band([r.scalars[name] for r in group if name in r.scalars])
-            if len(grid):
-                line = ax.plot(grid, mean, label=f"{task}: {label} ({len(group)} seeds)")[0]
-                ax.fill_between(grid, low, high, color=line.get_color(), alpha=0.2)
-        ax.set(xlabel="env frames", ylabel=ylabel)
-    axes[0].legend(fontsize=7)
-    return _save(fig, out / "learning_curves.png")
-
-
-def plot_reward_components(runs: Sequence[Run], out: Path) -> Path:
-    groups = group_runs(runs)
-    cols = min(len(groups), 4)
-    rows = -(-len(groups) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.2 * rows), squeeze=False)
-    for ax in axes.flat[len(groups) :]:
-        ax.set_visible(False)
-    for ax, ((task, label), group) in zip(axes.flat, groups.items(), strict=False):
-        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(4))
-        names = sorted({n for r in group for n in r.scalars if n.startswith("train/batch_")})
-        for name in names:
-            grid, mean, low, high = seed_band([r.scalars[name] for r in group if name in r.scalars])
-            ax.plot(grid, mean, label=name.removeprefix("train/batch_"))
-        starts = [_first_on(r.scalars.get("train/intrinsic_on")) for r in group]
-        starts = [s for s in starts if s is not None]
-        if starts:
-            ax.axvline(min(starts), color="k", linestyle="--", linewidth=1)
-        ax.set(title=f"{task}: {label}", xlabel="env frames", ylabel="mean reward in batch")
-        ax.legend(fontsize=7)
-    return _save(fig, out / "reward_components.png")
-
-
-def _first_on(series: Series | None) -> float | None:
-    if series is None or not (series[1] > 0).any():
-        return None
-    return float(series[0][np.argmax(series[1] > 0)])
-
-
-def _save(fig: plt.Figure, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
-
-
-_EVAL = "eval/success_rate"
-
-
 def _first_success(run: Run, threshold: float = 0.8) -> float:
-    frames, success = run.scalars.get(_EVAL, (np.zeros(0), np.zeros(0)))
+    frames, success = run.scalars.get(EVAL_SUCCESS, (np.zeros(0), np.zeros(0)))
     hits = frames[success >= threshold]
     return float(hits[0]) if len(hits) else float("nan")
 
@@ -209,7 +126,7 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
     """
     rows, nan = [], float("nan")
     for (task, label), group in group_runs(runs).items():
-        evals = [r.scalars[_EVAL][1] for r in group if _EVAL in r.scalars]
+        evals = [r.scalars[EVAL_SUCCESS][1] for r in group if EVAL_SUCCESS in r.scalars]
         all_impacts = max_impacts(group, with_zeros=True)
         impacts = all_impacts[all_impacts > 0]
         broken = np.concatenate([_after_warmup(r, "episode/broken") for r in group])
@@ -252,30 +169,7 @@ def format_table(rows: Sequence[dict[str, object]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(
-        prog="python -m gentlerl.plot", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument("runs", nargs="+", help="run directories or folders of runs")
-    parser.add_argument("-o", "--out", default="figures", help="output folder for the PNGs")
-    args = parser.parse_args(argv)
-    runs = find_runs(args.runs)
-    out = Path(args.out)
-    for path in (
-        plot_impact_histograms(runs, out),
-        plot_learning_curves(runs, out),
-        plot_reward_components(runs, out),
-    ):
-        print(path)
-    with (out / "summary.csv").open("w", newline="") as f:
-        rows = summary_table(runs)
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (out / "summary.md").write_text(format_table(rows) + "\n")
-    print(out / "summary.csv")
-    print(format_table(rows))
-
-
 if __name__ == "__main__":
-    main()
+    from gentlerl.figures import main
+
+    main(prog="python -m gentlerl.plot")
