@@ -243,7 +243,7 @@ def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_default_recipe_learns_touch(tmp_path):
-    """Issue §5: the default recipe (touch, r+rf+rsp, cpu scale) reaches >= 0.8 evaluation
+    """The default recipe (touch, r+rf+rsp, cpu scale) reaches >= 0.8 evaluation
     success (10 noise-free episodes) on the 2-core CPU, and still succeeds at the end of the run.
     Measured on 3 seeds x 100k frames: every seed reaches 1.0 by 15k frames (docs/REPRODUCTION.md)."""
     cfg = make_config(

@@ -1,4 +1,4 @@
-"""Distributional RL helpers for the D4PG learner (Bellemare 2017; Barth-Maron 2018)."""
+"""Distributional RL functions for the D4PG learner (Bellemare 2017; Barth-Maron 2018)."""
 
 from __future__ import annotations
 
