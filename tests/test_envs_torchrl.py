@@ -35,6 +35,7 @@ def test_observation_shapes_dtypes_and_flat_observation():
         keys.JOINT_VEL: (4, 24),
         keys.TOUCH: (4, 5, 3),
         keys.TOUCH_GRID: (4, 5, 3, 4, 4),
+        keys.ACTUATOR_FORCE: (4, 20),
         keys.OBSERVATION: (4, 63),
         keys.REWARD: (4, 1),
     }
@@ -47,6 +48,8 @@ def test_observation_shapes_dtypes_and_flat_observation():
     flat = torch.cat([nxt[keys.JOINT_POS], nxt[keys.JOINT_VEL], nxt[keys.TOUCH].flatten(1)], -1)
     torch.testing.assert_close(nxt[keys.OBSERVATION], flat, rtol=0, atol=0)
     torch.testing.assert_close(nxt[keys.TOUCH], nxt[keys.TOUCH_GRID].abs().sum((-2, -1)))
+    last_force = torch.as_tensor(env.dm_env.physics.data.actuator_force, dtype=torch.float32)
+    torch.testing.assert_close(nxt[keys.ACTUATOR_FORCE][-1], last_force)
 
 
 def test_same_seed_same_rollout():

@@ -9,11 +9,13 @@ from hypothesis import strategies as st
 
 from gentlerl.functional import (
     acceptability,
+    force_penalty,
     gaussian_nll,
     impact,
     impact_penalty,
     mixture_moments,
     penalty_surprise,
+    torque_penalty,
 )
 
 # |x| <= 2**50 ~ 1.1e15: far beyond any physical force (N) or log-density, inside the documented range.
@@ -43,7 +45,7 @@ def test_acceptability_is_the_papers_sigmoid():
         acceptability(x, -1.0, 2.0)
 
 
-def test_impact_penalty_matches_the_issue_numbers():
+def test_impact_penalty_matches_hand_computed_numbers():
     # 1 N at one fingertip → -(1 - sigmoid(2)) = -0.1192; 2 N → -(1 - 0.5) * 2 = -1.0.
     one = impact_penalty(torch.tensor([1.0, 0.0, 0.0, 0.0, 0.0]))
     two = impact_penalty(torch.tensor([0.0, 2.0, 0.0, 0.0, 0.0]))
@@ -52,6 +54,29 @@ def test_impact_penalty_matches_the_issue_numbers():
     # Sites add up: both at once.
     both = impact_penalty(torch.tensor([1.0, 2.0, 0.0, 0.0, 0.0]))
     assert both.item() == pytest.approx(-1.1192, abs=1e-4)
+
+
+def test_force_penalty_charges_the_total_force_past_lambda2():
+    # Site 0 holds 5.02 + 0.44 + 0.84 = 6.3 N (the touch task's straight press): with l = [2, 8]
+    # a = sigmoid(2 (8 - 6.3)) = sigmoid(3.4), cost (1 - a) 6.3 = 0.2035. 8 N costs half: -4.
+    force = torch.zeros(2, 5, 3)
+    force[0, 0] = torch.tensor([5.02, 0.44, 0.84])
+    force[1, 1, 0] = 8.0
+    expected = torch.tensor([-(1 - 1 / (1 + math.exp(-3.4))) * 6.3, -4.0])
+    torch.testing.assert_close(force_penalty(force), expected)
+    # Same number as the impact penalty of a press from zero: the level is charged like eq. 4.
+    torch.testing.assert_close(force_penalty(force, 2.0, 2.0), impact_penalty(force.sum(-1)))
+    with pytest.raises(ValueError, match="n_sites, n_channels"):
+        force_penalty(torch.zeros(3))
+
+
+def test_torque_penalty_charges_effort_magnitudes_past_lambda2():
+    # l = [4, 1]: 0.5 N m costs (1 - sigmoid(2)) 0.5 = 0.0596 whatever its sign; 1 N m costs 0.5.
+    torque = torch.tensor([[0.5, -0.5, 0.0], [1.0, 0.0, 0.0]])
+    cost = (1 - 1 / (1 + math.exp(-2))) * 0.5
+    torch.testing.assert_close(torque_penalty(torque), torch.tensor([-2 * cost, -0.5]))
+    with pytest.raises(ValueError, match="n_actuators"):
+        torque_penalty(torch.tensor(1.0))
 
 
 def test_mixture_moments_of_two_members():
@@ -109,6 +134,9 @@ def test_impact_is_non_negative_and_penalty_non_positive(f, g):
     assert (m >= 0).all()
     p = impact_penalty(m)
     assert torch.isfinite(p) and p.item() <= 0
+    # Forces are magnitudes (>= 0); actuator efforts have either sign: both penalties are <= 0.
+    for penalty in (force_penalty(force.abs()), torque_penalty(next_force)):
+        assert torch.isfinite(penalty).all() and (penalty <= 0).all()
 
 
 @settings(max_examples=200, deadline=None)

@@ -1,8 +1,9 @@
 """A tiny deterministic env with the hand env's keys and shapes, for transform and loop tests.
 
 Joint positions integrate the action; the fingertip force of site i grows with joint i pressing
-past 0.5 (a "wall"), so pressing actions produce impacts; pressing fingertip 0 with more than 5 N
-is a success (+1, terminated); episodes are truncated after ``time_limit`` steps.
+past 0.5 (a "wall"), so pressing actions produce impacts, and actuator i pushes back with 0.1 N m
+per N of that force; pressing fingertip 0 with more than 5 N is a success (+1, terminated);
+episodes are truncated after ``time_limit`` steps.
 """
 
 import torch
@@ -24,6 +25,7 @@ class ToyHandEnv(EnvBase):
                 keys.JOINT_POS: Unbounded((24,)),
                 keys.JOINT_VEL: Unbounded((24,)),
                 keys.TOUCH: Unbounded((5, 3)),
+                keys.ACTUATOR_FORCE: Unbounded((20,)),
                 keys.SUCCESS: Categorical(2, (1,), dtype=torch.bool),
                 keys.BROKEN: Categorical(2, (1,), dtype=torch.bool),
             }
@@ -40,11 +42,13 @@ class ToyHandEnv(EnvBase):
         press = (pos[:5] - 0.5).clamp_min(0.0) * self.stiffness
         touch = torch.stack([press, 0.1 * press, 0.0 * press], -1)
         obs = torch.cat([pos, vel, touch.flatten()])
+        actuator_force = torch.cat([0.1 * press, torch.zeros(15)])
         success = touch[0, :1] > 5.0  # fingertip 0 "pressed with more than 5 N"
         return {
             keys.JOINT_POS: pos,
             keys.JOINT_VEL: vel,
             keys.TOUCH: touch,
+            keys.ACTUATOR_FORCE: actuator_force,
             keys.OBSERVATION: obs,
             keys.SUCCESS: success,
             keys.BROKEN: torch.zeros(1, dtype=torch.bool),

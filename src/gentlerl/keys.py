@@ -9,6 +9,7 @@ JOINT_POS = "joint_pos"  # [24] joint angles (rad)
 JOINT_VEL = "joint_vel"  # [24] joint velocities (rad/s)
 TOUCH = "touch"  # [5, 3] per fingertip, per channel: sum over the 4x4 grid of |force| (N)
 TOUCH_GRID = "touch_grid"  # [5, 3, 4, 4] raw touch-grid readings (N)
+ACTUATOR_FORCE = "actuator_force"  # [20] force of each position actuator (N m at the joints)
 OBSERVATION = "observation"  # [63] flat state for actor / critic: joint_pos, joint_vel, touch
 PIXELS = "pixels"
 
@@ -26,6 +27,8 @@ PENALTY = "penalty"  # [1] r^f_t
 DYNAMICS_SURPRISE = "dynamics_surprise"  # [1] r^s_t
 PENALTY_SURPRISE = "penalty_surprise"  # [1] r^{sp}_t
 ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
+FORCE_PENALTY = "force_penalty"  # [1] r^F_t, total fingertip force penalty
+TORQUE_PENALTY = "torque_penalty"  # [1] r^tau_t, actuator effort penalty
 #: The curiosity rewards (not the task reward, not the impact penalty).
 INTRINSIC_REWARDS = (DYNAMICS_SURPRISE, PENALTY_SURPRISE, ICM_REWARD)
 

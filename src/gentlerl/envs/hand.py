@@ -27,19 +27,22 @@ BLOCK_POS = (1.0, 0.8124, 0.2111)
 
 
 # Layout of the float32 observation buffer a task fills each step (one allocation per step):
-# joint_pos [24] | joint_vel [24] | touch [5, 3] | touch_grid [5, 3, 4, 4]. The first 63 values are
-# the flat ``observation`` the learner reads.
+# joint_pos [24] | joint_vel [24] | touch [5, 3] | touch_grid [5, 3, 4, 4] | actuator_force [20].
+# The first 63 values are the flat ``observation`` the learner reads.
 N_JOINTS = 24
+N_ACTUATORS = 20
 N_TOUCH = len(TOUCH_SITES) * CHANNELS
 N_GRID = N_TOUCH * GRID[0] * GRID[1]
+FLAT_SIZE = 2 * N_JOINTS + N_TOUCH  # 63
+GRID_END = FLAT_SIZE + N_GRID
 OBS_SLICES = {
     keys.JOINT_POS: (slice(0, N_JOINTS), (N_JOINTS,)),
     keys.JOINT_VEL: (slice(N_JOINTS, 2 * N_JOINTS), (N_JOINTS,)),
-    keys.TOUCH: (slice(2 * N_JOINTS, 2 * N_JOINTS + N_TOUCH), (len(TOUCH_SITES), CHANNELS)),
-    keys.TOUCH_GRID: (slice(2 * N_JOINTS + N_TOUCH, None), (len(TOUCH_SITES), CHANNELS, *GRID)),
+    keys.TOUCH: (slice(2 * N_JOINTS, FLAT_SIZE), (len(TOUCH_SITES), CHANNELS)),
+    keys.TOUCH_GRID: (slice(FLAT_SIZE, GRID_END), (len(TOUCH_SITES), CHANNELS, *GRID)),
+    keys.ACTUATOR_FORCE: (slice(GRID_END, GRID_END + N_ACTUATORS), (N_ACTUATORS,)),
 }
-FLAT_SIZE = 2 * N_JOINTS + N_TOUCH  # 63
-OBS_SIZE = FLAT_SIZE + N_GRID
+OBS_SIZE = GRID_END + N_ACTUATORS
 
 
 class HandPhysics(Physics):
@@ -59,7 +62,8 @@ class HandPhysics(Physics):
         buf[:N_JOINTS] = self.data.qpos[:N_JOINTS]
         buf[N_JOINTS : 2 * N_JOINTS] = self.data.qvel[:N_JOINTS]
         grid = self.data.sensordata[-N_GRID:]
-        buf[FLAT_SIZE:] = grid
+        buf[FLAT_SIZE:GRID_END] = grid
+        buf[GRID_END:] = self.data.actuator_force
         np.abs(grid.reshape(N_TOUCH, -1)).sum(-1, out=buf[2 * N_JOINTS : FLAT_SIZE])
         return buf
 
@@ -167,7 +171,8 @@ class Explore(base.Task):
 
     def get_observation(self, physics: HandPhysics) -> dict[str, np.ndarray]:
         """float32 ``joint_pos`` [24], ``joint_vel`` [24], ``touch`` [5, 3], ``touch_grid``
-        [5, 3, 4, 4]: views of :attr:`buffer`, read once per step in ``after_step``."""
+        [5, 3, 4, 4], ``actuator_force`` [20]: views of :attr:`buffer`, read once per step in
+        ``after_step``."""
         return self.observation
 
     def get_reward(self, physics: HandPhysics) -> float:

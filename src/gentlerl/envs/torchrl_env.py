@@ -16,7 +16,7 @@ from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.envs.assets import CHANNELS, GRID, TOUCH_SITES
-from gentlerl.envs.hand import FLAT_SIZE, OBS_SLICES
+from gentlerl.envs.hand import FLAT_SIZE, N_ACTUATORS, OBS_SLICES
 from gentlerl.envs.rendering import render
 
 N_SITES = len(TOUCH_SITES)
@@ -31,10 +31,11 @@ class HandEnv(EnvBase):
     """TorchRL view of a :func:`gentlerl.envs.make_dm_env` environment.
 
     Writes float32 ``joint_pos`` [24], ``joint_vel`` [24], ``touch`` [5, 3], ``touch_grid``
-    [5, 3, 4, 4], ``observation`` [63] (joint_pos, joint_vel, flattened touch), bool ``success`` /
-    ``broken`` [1], ``reward`` [1]; the time limit is reported as ``truncated``, success and a
-    broken block as ``terminated``. ``joint_pos`` ... ``touch_grid`` of one step are views of one
-    fresh float32 buffer (one allocation per step); ``observation`` is a copy of its first 63 values.
+    [5, 3, 4, 4], ``actuator_force`` [20], ``observation`` [63] (joint_pos, joint_vel, flattened
+    touch), bool ``success`` / ``broken`` [1], ``reward`` [1]; the time limit is reported as
+    ``truncated``, success and a broken block as ``terminated``. ``joint_pos`` ...
+    ``actuator_force`` of one step are views of one fresh float32 buffer (one allocation per
+    step); ``observation`` is a copy of its first 63 values.
     """
 
     def __init__(
@@ -54,6 +55,7 @@ class HandEnv(EnvBase):
             keys.JOINT_VEL: Unbounded((24,), device=device),
             keys.TOUCH: Unbounded((N_SITES, CHANNELS), device=device),
             keys.TOUCH_GRID: Unbounded((N_SITES, CHANNELS, *GRID), device=device),
+            keys.ACTUATOR_FORCE: Unbounded((N_ACTUATORS,), device=device),
             keys.OBSERVATION: Unbounded((48 + N_SITES * CHANNELS,), device=device),
             keys.SUCCESS: _flag(),
             keys.BROKEN: _flag(),

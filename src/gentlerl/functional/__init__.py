@@ -1,22 +1,26 @@
-"""Pure functions for the paper's equations (see ``../shared/STYLE.md`` for the name map)."""
+"""Pure functions for the paper's equations, one each (CONTRIBUTING.md maps the paper's names)."""
 
 from gentlerl.functional.distributional import categorical_projection, categorical_support
 from gentlerl.functional.gentleness import (
     acceptability,
+    force_penalty,
     gaussian_nll,
     impact,
     impact_penalty,
     mixture_moments,
     penalty_surprise,
+    torque_penalty,
 )
 
 __all__ = [
     "acceptability",
     "categorical_projection",
     "categorical_support",
+    "force_penalty",
     "gaussian_nll",
     "impact",
     "impact_penalty",
     "mixture_moments",
     "penalty_surprise",
+    "torque_penalty",
 ]

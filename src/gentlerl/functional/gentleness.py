@@ -15,11 +15,13 @@ import torch
 
 __all__ = [
     "acceptability",
+    "force_penalty",
     "gaussian_nll",
     "impact",
     "impact_penalty",
     "mixture_moments",
     "penalty_surprise",
+    "torque_penalty",
 ]
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -73,6 +75,56 @@ def impact_penalty(impact: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0) -
         ``[...]`` penalty (<= 0).
     """
     return -((1.0 - acceptability(impact, lam1, lam2)) * impact).sum(-1)
+
+
+def force_penalty(force: torch.Tensor, lam1: float = 2.0, lam2: float = 8.0) -> torch.Tensor:
+    r"""Total-force penalty :math:`r^F_t = -\sum_i (1 - a_\lambda(F^i_{t+1}))\, F^i_{t+1}`,
+    :math:`F^i = \sum_c f^{i,c}` (beyond the paper: its "future work" on wear).
+
+    Eq. 4 with the force *level* in place of its increase: impacts wear a fingertip at contact,
+    a sustained press wears it for as long as it lasts. The acceptability sigmoid (eq. 3) keeps
+    the penalty's shape: forces well below :math:`\lambda_2` are almost free, above it each newton
+    costs about one unit. The default :math:`\lambda = [2, 8]` lets the hand press as hard as the
+    touch task needs (> 5 N normal, ~6.3 N summed over channels for a straight press: cost 0.2)
+    and makes every newton past ~8 N cost (10 N: -9.8).
+
+    Args:
+        force: ``[..., n_sites, n_channels]`` non-negative sensed force at step t+1 (N), e.g. the
+            hand's ``touch`` (per channel, the sum of |force| over the touch grid).
+        lam1, lam2: :math:`\lambda` of the acceptability sigmoid.
+
+    Returns:
+        ``[...]`` penalty (<= 0).
+    """
+    if force.ndim < 2:
+        raise ValueError(
+            f"force must have shape [..., n_sites, n_channels], got {tuple(force.shape)}"
+        )
+    return impact_penalty(force.sum(-1), lam1, lam2)
+
+
+def torque_penalty(torque: torch.Tensor, lam1: float = 4.0, lam2: float = 1.0) -> torch.Tensor:
+    r"""Actuator-effort penalty :math:`r^\tau_t = -\sum_j (1 - a_\lambda(|\tau^j_{t+1}|))\, |\tau^j_{t+1}|`
+    (beyond the paper: its "future work" on actuator wear).
+
+    Eq. 4 applied to the force each actuator exerts: the sign only says which way a joint is
+    driven, the magnitude is what strains the motor and tendon. Efforts well below
+    :math:`\lambda_2` are almost free, so holding the hand up against gravity costs little, and
+    each unit above it costs about one unit. The default :math:`\lambda = [4, 1]` (N m for the
+    Shadow Hand's joint actuators, whose limits are 2.2-4.8 N m) makes the ~0.5 N m that a
+    finger needs for the touch task's 5 N press cost 0.06 and 2 N m cost 1.96.
+
+    Args:
+        torque: ``[..., n_actuators]`` actuator forces after the step (the hand's
+            ``actuator_force``, MuJoCo ``data.actuator_force``).
+        lam1, lam2: :math:`\lambda` of the acceptability sigmoid.
+
+    Returns:
+        ``[...]`` penalty (<= 0).
+    """
+    if torque.ndim < 1:
+        raise ValueError(f"torque must have shape [..., n_actuators], got {tuple(torque.shape)}")
+    return impact_penalty(torque.abs(), lam1, lam2)
 
 
 def mixture_moments(

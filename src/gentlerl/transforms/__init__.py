@@ -29,8 +29,9 @@ from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty
 from gentlerl.transforms.stack import HAND_FEATURES, VARIANTS, RewardStack, make_reward_transforms
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
+from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
-#: The issue's / paper's name for the ICM baseline transform.
+#: The paper's name for the ICM baseline transform.
 ICM = ICMReward
 
 __all__ = [
@@ -38,11 +39,13 @@ __all__ = [
     "ICM",
     "VARIANTS",
     "DynamicsSurprise",
+    "ForcePenalty",
     "ICMReward",
     "ImpactPenalty",
     "ModelRewardTransform",
     "PenaltySurprise",
     "RewardStack",
+    "TorquePenalty",
     "TransitionTransform",
     "make_reward_transforms",
 ]
