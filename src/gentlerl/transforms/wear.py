@@ -19,19 +19,25 @@ from gentlerl.transforms.base import TransitionTransform
 
 
 class _LevelPenalty(TransitionTransform):
-    """A penalty of the level ``in_keys[0]`` reaches after the step: ``penalty(s_{t+1}, *lam)``."""
+    """A penalty of the level ``in_keys[0]`` reaches after the step: ``penalty(s_{t+1}, *lam)``.
+
+    Subclasses set :attr:`penalty`, :attr:`default_lam` and :attr:`default_keys` (in, out).
+    """
 
     penalty: Callable[..., torch.Tensor]
+    default_lam: tuple[float, float]
+    default_keys: tuple[str, str]
 
     def __init__(
         self,
-        lam: tuple[float, float],
-        in_keys: list[str] | None,
-        out_keys: list[str] | None,
-        default_keys: tuple[str, str],
+        lam: tuple[float, float] | None = None,
+        *,
+        in_keys: list[str] | None = None,
+        out_keys: list[str] | None = None,
     ) -> None:
-        in_keys = in_keys or [default_keys[0]]
-        out_keys = out_keys or [default_keys[1]]
+        lam = self.default_lam if lam is None else tuple(lam)
+        in_keys = in_keys or [self.default_keys[0]]
+        out_keys = out_keys or [self.default_keys[1]]
         name = type(self).__name__
         if len(in_keys) != 1 or len(out_keys) != 1:
             raise ValueError(
@@ -72,15 +78,8 @@ class ForcePenalty(_LevelPenalty):
     """
 
     penalty = staticmethod(force_penalty)
-
-    def __init__(
-        self,
-        lam: tuple[float, float] = (2.0, 8.0),
-        *,
-        in_keys: list[str] | None = None,
-        out_keys: list[str] | None = None,
-    ) -> None:
-        super().__init__(lam, in_keys, out_keys, (keys.TOUCH, keys.FORCE_PENALTY))
+    default_lam = (2.0, 8.0)
+    default_keys = (keys.TOUCH, keys.FORCE_PENALTY)
 
 
 class TorquePenalty(_LevelPenalty):
@@ -104,12 +103,5 @@ class TorquePenalty(_LevelPenalty):
     """
 
     penalty = staticmethod(torque_penalty)
-
-    def __init__(
-        self,
-        lam: tuple[float, float] = (4.0, 1.0),
-        *,
-        in_keys: list[str] | None = None,
-        out_keys: list[str] | None = None,
-    ) -> None:
-        super().__init__(lam, in_keys, out_keys, (keys.ACTUATOR_FORCE, keys.TORQUE_PENALTY))
+    default_lam = (4.0, 1.0)
+    default_keys = (keys.ACTUATOR_FORCE, keys.TORQUE_PENALTY)
