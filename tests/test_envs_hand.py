@@ -10,12 +10,12 @@ G = 9.81
 FLEX_INDEX_KNUCKLE = 3  # actuator robot0:A_FFJ2
 
 
-def _press(task: str, *, steps: int = 80, **kwargs):
-    """Flex the index knuckle (a constant +1 delta) until the episode ends."""
+def _press(task: str, *, push: float = 1.0, steps: int = 80, **kwargs):
+    """Flex the index knuckle (a constant ``push`` delta) until the episode ends."""
     env = make_dm_env(task, seed=0, **kwargs)
     ts = env.reset()
     action = np.zeros(20)
-    action[FLEX_INDEX_KNUCKLE] = 1.0
+    action[FLEX_INDEX_KNUCKLE] = push
     touches = [ts.observation["touch"]]
     for _ in range(steps):
         ts = env.step(action)
@@ -55,7 +55,7 @@ def test_touch_success_terminates_with_reward_one():
     assert ts.reward == 1.0 and env.task.success
     assert touches[-1][:, 0].max() > 5.0  # the first step past the threshold ...
     assert touches[-2][:, 0].max() <= 5.0  # ... and not before
-    assert 20 < steps < 60
+    assert 8 < steps < 16  # the default calibration: 0.07 x 1.57 rad per step
 
 
 def test_actuator_force_is_the_knuckles_effort_of_the_press():
@@ -76,20 +76,45 @@ def test_actuator_force_is_the_knuckles_effort_of_the_press():
 
 
 def test_fragile_gentle_press_succeeds_with_reward_five():
-    env, ts, _, touches = _press("fragile", randomize_block=False)
+    """A quarter-speed knuckle press (0.027 rad per step) ramps the force up gently."""
+    env, ts, _, touches = _press("fragile", push=0.25, randomize_block=False)
     impacts = np.clip(np.diff(touches, axis=0), 0, None).sum(-1)  # paper eq. 1, per fingertip
     assert impacts.max() < 3.0
     assert ts.reward == 5.0 and env.task.success and not env.task.broken
     assert ts.discount == 0.0
 
 
-def test_fragile_fast_press_breaks_the_block():
-    env, ts, _, touches = _press("fragile", randomize_block=False, action_scale=0.5)
+def test_fragile_full_press_breaks_the_block():
+    """The default (``paper``) calibration: a full-speed press breaks the fragile block."""
+    env, ts, _, touches = _press("fragile", randomize_block=False)
     impacts = np.clip(np.diff(touches, axis=0), 0, None).sum(-1)
     assert impacts[-1].max() > 3.0  # the last step's impact broke it
     assert impacts[:-1].max() <= 3.0
     assert ts.reward == -0.5 and env.task.broken and not env.task.success
     assert ts.discount == 0.0
+
+
+def test_easy_calibration_keeps_the_full_press_gentle():
+    """``calibration="easy"`` (action scale 0.02): the same full-speed press succeeds."""
+    env, ts, steps, touches = _press("fragile", randomize_block=False, calibration="easy")
+    impacts = np.clip(np.diff(touches, axis=0), 0, None).sum(-1)
+    assert env.task.action_scale == 0.02 and impacts.max() < 1.5
+    assert ts.reward == 5.0 and env.task.success and 20 < steps < 60
+
+
+def test_calibration_values_and_overrides():
+    gain = {
+        n: make_dm_env("touch", calibration=n).physics.model.actuator_gainprm[3, 0]
+        for n in ("paper", "easy")
+    }
+    assert gain == {"paper": 3.0, "easy": 3.0}
+    env = make_dm_env("touch", calibration="easy", action_scale=0.1, actuator_gain=5.0)
+    assert env.task.action_scale == 0.1 and env.physics.model.actuator_gainprm[3, 0] == 5.0
+    near, far = (
+        make_dm_env("touch", randomize_block=False, block_gap=gap).task.block_pos
+        for gap in (0, 0.01)
+    )
+    np.testing.assert_allclose(far - near, [0.0, 0.01 * np.sin(0.75), 0.01 * np.cos(0.75)])
 
 
 def test_explore_has_no_reward_and_truncates():
@@ -125,6 +150,9 @@ def test_block_randomisation_is_small_and_seeded():
         ({"block_range": float("nan")}, "block_range"),
         ({"action_scale": 0.0}, r"action_scale must be in \(0, 1\], got 0.0"),
         ({"time_limit": 0}, "time_limit must be an integer >= 1"),
+        ({"calibration": "hard"}, "unknown calibration 'hard'; expected one of"),
+        ({"actuator_gain": 0.0}, "actuator_gain must be a finite number > 0, got 0.0"),
+        ({"block_gap": 0.2}, r"block_gap must be in \[-0.01, 0.05\] m, got 0.2"),
     ],
 )
 def test_bad_arguments(kwargs, match):

@@ -10,18 +10,36 @@ from dm_control.rl import control
 from dm_control.utils import containers
 
 from gentlerl.envs.assets import scene_xml
-from gentlerl.envs.hand import CONTROL_TIMESTEP, Explore, Fragile, HandPhysics, Touch
+from gentlerl.envs.hand import (
+    CALIBRATIONS,
+    CONTROL_TIMESTEP,
+    DEFAULT_CALIBRATION,
+    Explore,
+    Fragile,
+    HandPhysics,
+    Touch,
+)
 from gentlerl.envs.torchrl_env import HandEnv
 
 SUITE = containers.TaggedTasks()
 
 
 def _load(
-    task_cls: type[Explore], time_limit: int, random: Any, **task_kwargs: Any
+    task_cls: type[Explore],
+    time_limit: int,
+    random: Any,
+    calibration: str = DEFAULT_CALIBRATION,
+    **task_kwargs: Any,
 ) -> control.Environment:
+    if calibration not in CALIBRATIONS:
+        raise ValueError(f"unknown calibration {calibration!r}; expected one of {list(CALIBRATIONS)}")
+    task_kwargs = {**CALIBRATIONS[calibration], **task_kwargs}
+    actuator_gain = task_kwargs.pop("actuator_gain")
     if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
         raise ValueError(f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}")
-    physics = HandPhysics.from_xml_string(scene_xml())
+    if not (np.isfinite(actuator_gain) and actuator_gain > 0):
+        raise ValueError(f"actuator_gain must be a finite number > 0, got {actuator_gain!r}")
+    physics = HandPhysics.from_xml_string(scene_xml(actuator_gain=float(actuator_gain)))
     task = task_cls(random=random, **task_kwargs)
     n_sub_steps = int(round(CONTROL_TIMESTEP / physics.model.opt.timestep))
     # dm_control truncates once physics time >= time_limit; the epsilon makes that exactly
@@ -61,8 +79,11 @@ def make_dm_env(
         task: one of :data:`TASKS`.
         seed: seeds the task's RandomState (block placement); same seed, same rollouts.
         **task_kwargs: ``time_limit`` (control steps of 50 ms before truncation, default 200)
-            and the task's keyword arguments, e.g. ``force_threshold=5.0``, ``break_impact=3.0``,
-            ``action_scale=0.02``, ``randomize_block=True``, ``block_range=0.005``.
+            ``calibration`` (a name in :data:`~gentlerl.envs.hand.CALIBRATIONS`: ``"paper"``, the
+            default, or ``"easy"``), whose values (``action_scale``, ``actuator_gain``,
+            ``block_gap``) single keyword arguments override, and the task's keyword arguments,
+            e.g. ``force_threshold=5.0``, ``break_impact=3.0``, ``randomize_block=True``,
+            ``block_range=0.005``.
     """
     if task not in SUITE:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")

@@ -19,11 +19,25 @@ from gentlerl.envs.assets import CHANNELS, FINGERTIPS, GRID, TOUCH_SITES
 
 CONTROL_TIMESTEP = 0.05  # 20 Hz
 # Block centre (world frame), matching assets.BLOCK_QUAT: the plate lies flat on the distal pads
-# of the first three fingers when their knuckles (J2) are flexed by 0.75 rad. With the default
-# action_scale, uniformly random actions touch it in 23 % of episodes and press it with > 5 N in
-# 1 % (100 episodes), while flexing one knuckle (+1 on A_FFJ2, A_MFJ2 or A_RFJ2) succeeds in ~38
-# steps with impacts of at most ~1 N (benchmarks/RESULTS.md).
+# of the first three fingers when their knuckles (J2) are flexed by 0.75 rad.
 BLOCK_POS = (1.0, 0.8124, 0.2111)
+# The plate's normal (world frame), pointing away from the finger pads: ``block_gap`` moves the
+# block along it.
+BLOCK_NORMAL = (0.0, float(np.sin(0.75)), float(np.cos(0.75)))
+
+#: Hand calibrations (``make_dm_env(..., calibration=NAME)``): action scale (fraction of each
+#: actuator's ctrl range per step), finger actuator gain (x gymnasium-robotics' kp and force
+#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``benchmarks/calibrate.py``
+#: (docs/CALIBRATION.md). ``paper`` puts the hand in the paper's regime: a naive full press breaks
+#: the fragile block (5 of 5 episodes, 8.2 N), uniformly random actions exceed 5 N in 74 % of the
+#: episodes that touch anything, and a gradual scripted press still succeeds without breaking it
+#: (max impact 1.0 N). ``easy`` is the earlier setting, where nothing breaks the block unless it
+#: tries hard (full press: 2.2 N, random actions never above 5 N).
+CALIBRATIONS: dict[str, dict[str, float]] = {
+    "paper": {"action_scale": 0.07, "actuator_gain": 3.0, "block_gap": 0.0},
+    "easy": {"action_scale": 0.02, "actuator_gain": 3.0, "block_gap": 0.0},
+}
+DEFAULT_CALIBRATION = "paper"
 
 
 # Layout of the float32 observation buffer a task fills each step (one allocation per step):
@@ -96,10 +110,11 @@ class Explore(base.Task):
     def __init__(
         self,
         *,
-        action_scale: float = 0.02,
+        action_scale: float = CALIBRATIONS[DEFAULT_CALIBRATION]["action_scale"],
         randomize_block: bool = True,
         block_range: float = 0.005,
         block_pos: tuple[float, float, float] = BLOCK_POS,
+        block_gap: float = 0.0,
         random: int | np.random.RandomState | None = None,
     ) -> None:
         _check_non_negative(block_range=block_range)
@@ -112,6 +127,9 @@ class Explore(base.Task):
         self.block_pos = np.asarray(block_pos, dtype=np.float64)
         if self.block_pos.shape != (3,):
             raise ValueError(f"block_pos must be (x, y, z), got {block_pos!r}")
+        if not (np.isfinite(block_gap) and -0.01 <= block_gap <= 0.05):
+            raise ValueError(f"block_gap must be in [-0.01, 0.05] m, got {block_gap!r}")
+        self.block_pos = self.block_pos + block_gap * np.asarray(BLOCK_NORMAL)
         self.buffer: np.ndarray | None = None  # float32 [OBS_SIZE], laid out as OBS_SLICES
         self.observation: dict[str, np.ndarray] = {}
         self.success = False

@@ -1,0 +1,91 @@
+"""Evaluate a saved policy: ``python -m gentlerl.evaluate POLICY --episodes N [--task T] [--seed S]``.
+
+``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
+``best_policy.pt``). The actor runs without exploration noise in the env its run trained on (its
+``env_kwargs``, so the same hand calibration), or on another task with ``--task``. Prints the
+success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from gentlerl.envs import TASKS
+
+SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
+
+
+def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
+    """Success and broken rates and median / p90 max impact (N) of evaluation episodes.
+
+    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1) and ``max_impact``, as
+    :func:`gentlerl.training.evaluation.evaluate` returns them.
+    """
+    if not episodes:
+        raise ValueError("need at least one episode to summarize, got none")
+    impact = np.array([e["max_impact"] for e in episodes], dtype=np.float64)
+    return {
+        "episodes": len(episodes),
+        "success_rate": float(np.mean([e["success"] for e in episodes])),
+        "broken_rate": float(np.mean([e["broken"] for e in episodes])),
+        "median_max_impact": float(np.median(impact)),
+        "p90_max_impact": float(np.percentile(impact, 90)),
+    }
+
+
+def evaluate_policy(
+    path: str | os.PathLike, episodes: int, *, task: str | None = None, seed: int = 0
+) -> dict[str, float]:
+    """Load the policy at ``path`` and run ``episodes`` deterministic episodes (see module doc)."""
+    from gentlerl.training.builders import make_eval_env
+    from gentlerl.training.checkpoint import load_policy
+    from gentlerl.training.evaluation import evaluate
+
+    if not (isinstance(episodes, int) and episodes >= 1):
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if task is not None and task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
+    cfg, actor = load_policy(path)
+    from gentlerl.envs import make_env
+
+    env = make_eval_env(lambda: make_env(task or cfg.task, **cfg.env_kwargs), seed)
+    torch.manual_seed(seed)
+    try:
+        # The env's own time limit (200 steps by default) ends every episode before this cap.
+        _, per_episode = evaluate(env, actor, episodes, max_steps=100_000)
+    finally:
+        env.close()
+    return {"task": task or cfg.task, **summarize(per_episode)}
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, float]:
+    parser = argparse.ArgumentParser(
+        prog="python -m gentlerl.evaluate", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument("policy", help="a run's checkpoint.pt or best_policy.pt")
+    parser.add_argument("--episodes", type=int, default=50, help="default: %(default)s")
+    parser.add_argument("--task", choices=TASKS, help="default: the task the policy trained on")
+    parser.add_argument("--seed", type=int, default=0, help="block placements; default: 0")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    result = evaluate_policy(args.policy, args.episodes, task=args.task, seed=args.seed)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(
+            f"{args.policy} on {result['task']}, {result['episodes']} episodes (seed {args.seed}):\n"
+            f"  success {result['success_rate']:.2f}  broken {result['broken_rate']:.2f}  "
+            f"max impact median {result['median_max_impact']:.2f} N, "
+            f"p90 {result['p90_max_impact']:.2f} N"
+        )
+    return result
+
+
+if __name__ == "__main__":
+    main()
