@@ -161,7 +161,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     start = time.time()
-    print(f"{platform.node()} {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, seed {args.seed}")
+    print(
+        f"{platform.node()} {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, seed {args.seed}"
+    )
     print(HEADER)
     for s in SETTINGS:
         row = probe(s, args.random_episodes, args.seed)

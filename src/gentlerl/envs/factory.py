@@ -32,7 +32,9 @@ def _load(
     **task_kwargs: Any,
 ) -> control.Environment:
     if calibration not in CALIBRATIONS:
-        raise ValueError(f"unknown calibration {calibration!r}; expected one of {list(CALIBRATIONS)}")
+        raise ValueError(
+            f"unknown calibration {calibration!r}; expected one of {list(CALIBRATIONS)}"
+        )
     task_kwargs = {**CALIBRATIONS[calibration], **task_kwargs}
     actuator_gain = task_kwargs.pop("actuator_gain")
     if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
