@@ -2,7 +2,8 @@
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
 ``best_policy.pt``). The actor runs without exploration noise in the env its run trained on (its
-``env_kwargs``, so the same hand calibration), or on another task with ``--task``. Prints the
+``env_kwargs``, so the same hand calibration), or on another task with ``--task`` or another
+calibration with ``--calibration`` (docs/CALIBRATION.md). Prints the
 success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N).
 """
 
@@ -12,11 +13,12 @@ import argparse
 import json
 import os
 from collections.abc import Sequence
+from functools import partial
 
 import numpy as np
 import torch
 
-from gentlerl.envs import TASKS
+from gentlerl.envs import CALIBRATIONS, TASKS, make_env
 
 SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
 
@@ -40,9 +42,18 @@ def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
 
 
 def evaluate_policy(
-    path: str | os.PathLike, episodes: int, *, task: str | None = None, seed: int = 0
+    path: str | os.PathLike,
+    episodes: int,
+    *,
+    task: str | None = None,
+    calibration: str | None = None,
+    seed: int = 0,
 ) -> dict[str, float]:
-    """Load the policy at ``path`` and run ``episodes`` deterministic episodes (see module doc)."""
+    """Load the policy at ``path`` and run ``episodes`` deterministic episodes (see module doc).
+
+    ``task`` / ``calibration``: ``None`` keeps the run's own. Returns ``task`` and the
+    :func:`summarize` numbers.
+    """
     from gentlerl.training.builders import make_eval_env
     from gentlerl.training.checkpoint import load_policy
     from gentlerl.training.evaluation import evaluate
@@ -52,9 +63,10 @@ def evaluate_policy(
     if task is not None and task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
     cfg, actor = load_policy(path)
-    from gentlerl.envs import make_env
-
-    env = make_eval_env(lambda: make_env(task or cfg.task, **cfg.env_kwargs), seed)
+    env_kwargs = dict(cfg.env_kwargs)
+    if calibration is not None:
+        env_kwargs["calibration"] = calibration
+    env = make_eval_env(partial(make_env, task or cfg.task, **env_kwargs), seed)
     torch.manual_seed(seed)
     try:
         # The env's own time limit (200 steps by default) ends every episode before this cap.
@@ -71,10 +83,15 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     parser.add_argument("policy", help="a run's checkpoint.pt or best_policy.pt")
     parser.add_argument("--episodes", type=int, default=50, help="default: %(default)s")
     parser.add_argument("--task", choices=TASKS, help="default: the task the policy trained on")
+    parser.add_argument(
+        "--calibration", choices=list(CALIBRATIONS), help="default: the policy's own"
+    )
     parser.add_argument("--seed", type=int, default=0, help="block placements; default: 0")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
-    result = evaluate_policy(args.policy, args.episodes, task=args.task, seed=args.seed)
+    result = evaluate_policy(
+        args.policy, args.episodes, task=args.task, calibration=args.calibration, seed=args.seed
+    )
     if args.json:
         print(json.dumps(result))
     else:
