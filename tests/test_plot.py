@@ -5,7 +5,18 @@ import pytest
 import yaml
 
 from gentlerl.figures import main
-from gentlerl.plot import find_runs, format_table, max_impacts, seed_band, summary_table
+from gentlerl.plot import (
+    after_intrinsic_start,
+    final_eval_episodes,
+    find_runs,
+    format_table,
+    intrinsic_start,
+    load_run,
+    max_impacts,
+    seed_band,
+    successful_final_impacts,
+    summary_table,
+)
 
 
 def _fake_run(root, variant, seed, lam2, success, impacts, **config):
@@ -84,3 +95,45 @@ def test_missing_runs_are_a_clear_error(tmp_path):
         find_runs([tmp_path])
     with pytest.raises(FileNotFoundError, match="no such run directory"):
         find_runs([tmp_path / "nope"])
+
+
+def test_fig3_selection_starts_where_the_intrinsic_rewards_switch_on(tmp_path):
+    # intrinsic_on first reads 1 at frame 1500: rollouts logged at 1600 and 1800 are kept.
+    impacts = [9.0] * 7 + [0.0, 4.0, 2.0]  # logged at 200, 400, ..., 2000
+    _fake_run(tmp_path, "rs", 0, 2.0, (0.0, 0.0, 0.0), impacts)
+    (run,) = find_runs([tmp_path])
+    assert intrinsic_start(run) == 1500.0
+    assert after_intrinsic_start([run]).tolist() == [4.0, 2.0]
+    assert after_intrinsic_start([run], with_zeros=True).tolist() == [0.0, 4.0, 2.0]
+
+
+def test_fig3_selection_without_intrinsic_rewards_uses_the_same_frame(tmp_path):
+    run = _fake_run(
+        tmp_path,
+        "r",
+        0,
+        2.0,
+        (0.0, 0.0, 0.0),
+        [1.0] * 10,
+        init_random_frames=1000,
+        reward_delay=100,
+        utd_ratio=0.25,
+    )
+    (run / "logs" / "scalars" / "train" / "intrinsic_on.csv").write_text("1000,0\n2000,0\n")
+    (loaded,) = find_runs([tmp_path])
+    assert intrinsic_start(loaded) == 1000 + 100 / 0.25
+    assert len(after_intrinsic_start([loaded])) == 3  # logged at 1600, 1800, 2000
+
+
+def test_fig5_selection_is_the_successful_rollouts_of_the_last_evaluation(tmp_path):
+    run = _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0])
+    (run / "eval_episodes.csv").write_text(
+        "frames,episode,success,broken,max_impact,return\n"
+        "1000,0,1,0,9.0,1\n1000,1,0,0,8.0,0\n"  # an earlier evaluation: ignored
+        "3000,0,1,0,1.5,1\n3000,1,0,1,4.0,-0.5\n3000,2,1,0,2.5,1\n"
+    )
+    other = _fake_run(tmp_path, "r", 1, 2.0, (0.0, 0.0, 0.0), [1.0])  # never evaluated
+    runs = find_runs([tmp_path])
+    assert final_eval_episodes(runs[0])["frames"].tolist() == [3000.0] * 3
+    assert successful_final_impacts(runs).tolist() == [1.5, 2.5]
+    assert len(final_eval_episodes(load_run(other))) == 0

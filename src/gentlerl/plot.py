@@ -109,6 +109,51 @@ def max_impacts(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
     return values if with_zeros else values[values > 0]
 
 
+def intrinsic_start(run: Run) -> float:
+    """Env frame at which the run's intrinsic rewards switched on.
+
+    The first frame where ``train/intrinsic_on`` reads 1; for a run without intrinsic rewards (or
+    that never switched them on) the frame they would have started at, ``init_random_frames +
+    reward_delay / utd_ratio`` (updates start after the warm-up, ``utd_ratio`` per frame), so
+    that every variant of a grid is compared over the same part of training.
+    """
+    frames, on = run.scalars.get("train/intrinsic_on", (np.zeros(0), np.zeros(0)))
+    if (on > 0).any():
+        return float(frames[np.argmax(on > 0)])
+    cfg = run.config
+    return float(
+        cfg.get("init_random_frames", 0) + cfg.get("reward_delay", 0) / cfg.get("utd_ratio", 1)
+    )
+
+
+def after_intrinsic_start(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
+    """Paper Fig. 3's data: max impact (N) of the training rollouts logged after each run's
+    :func:`intrinsic_start`, over ``runs``; zero-impact rollouts removed unless ``with_zeros``."""
+    parts = []
+    for run in runs:
+        frames, values = run.scalars.get("episode/max_impact", (np.zeros(0), np.zeros(0)))
+        parts.append(values[frames > intrinsic_start(run)])
+    values = np.concatenate(parts) if parts else np.zeros(0)
+    return values if with_zeros else values[values > 0]
+
+
+def final_eval_episodes(run: Run) -> np.ndarray:
+    """The rows of the run's last evaluation in ``eval_episodes.csv`` (structured array with the
+    columns ``frames, episode, success, broken, max_impact, return``); empty if none."""
+    path = run.path / "eval_episodes.csv"
+    if not path.is_file() or path.stat().st_size == 0:
+        return np.zeros(0, dtype=[("frames", float), ("success", float), ("max_impact", float)])
+    rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    return rows[rows["frames"] == rows["frames"].max()] if len(rows) else rows
+
+
+def successful_final_impacts(runs: Sequence[Run]) -> np.ndarray:
+    """Paper Fig. 5's data: max impact (N) of the *successful* evaluation rollouts of each run's
+    final policy (its last evaluation, no exploration noise), over ``runs``."""
+    parts = [rows["max_impact"][rows["success"] > 0] for rows in map(final_eval_episodes, runs)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 def _first_success(run: Run, threshold: float = 0.8) -> float:
     frames, success = run.scalars.get(EVAL_SUCCESS, (np.zeros(0), np.zeros(0)))
     hits = frames[success >= threshold]

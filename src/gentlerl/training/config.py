@@ -17,9 +17,10 @@ WANDB_MODES = ("offline", "online", "disabled")
 class TrainConfig:
     """A training run. Defaults are the ``cpu`` scale; :data:`SCALES` lists the presets.
 
-    Paper values (``scale="paper"``): batch 256, buffer 1M, lr 1e-4, 500k steps, reward delay
-    20k, dynamics / penalty target periods 5k / 1k, actor 300-200, critics 400-300, 101 atoms on
-    [-100, 100], n-step 5, gamma 0.99, exploration sigma 0.3, ensembles of 5 x (3 x 128).
+    Given by the paper (``scale="paper"``): batch 256, buffer 1M, lr 1e-4, 500k steps, reward
+    delay 20k, dynamics / penalty target periods 5k / 1k, actor 300-200, critics 400-300, 101 atoms
+    on [-100, 100], ensembles of 5 x (3 x 128). Not given by the paper (D4PG / Acme defaults, our
+    choice at both scales): n-step 5, gamma 0.99, exploration sigma 0.3.
     """
 
     task: str = "touch"
