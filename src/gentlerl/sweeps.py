@@ -1,6 +1,6 @@
 """Run a wandb sweep file's grid locally, without a wandb server.
 
-    python -m gentlerl.sweeps recipes/sweeps/fig4_touch.yaml --workers 2 --out runs/sweeps
+    gentlerl sweep recipes/sweeps/fig4_touch.yaml --workers 2 --out runs/sweeps --figures figs
 
 Each grid point becomes one ``python recipes/train.py key=value ...`` process with a
 deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resumable: a run whose
@@ -23,9 +23,8 @@ from typing import Any
 
 import yaml
 
+from gentlerl.cli import TRAIN_SCRIPT
 from gentlerl.training.loop import DONE_MARKER
-
-TRAIN_SCRIPT = Path(__file__).resolve().parents[2] / "recipes" / "train.py"
 
 
 @dataclass(frozen=True)
@@ -109,26 +108,45 @@ def run_grid(
     return counts
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gentlerl.sweeps", description=__doc__.splitlines()[0]
+        prog=prog,
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("sweep", help="a wandb grid sweep YAML (recipes/sweeps/*.yaml)")
     parser.add_argument("--out", default="runs/sweeps", help="root folder of the run directories")
     parser.add_argument("--workers", type=int, default=1, help="runs in parallel")
-    parser.add_argument("--scale", default=None, help="cpu or paper (added as scale=...)")
+    parser.add_argument(
+        "--scale", default=None, choices=("cpu", "paper"), help="added to every run as scale=..."
+    )
     parser.add_argument(
         "--set", action="append", default=[], help="extra override, e.g. total_frames=30000"
     )
     parser.add_argument("--dry-run", action="store_true", help="print the commands only")
-    args = parser.parse_args(argv)
+    parser.add_argument(
+        "--figures", default=None, help="afterwards, write the paper-style figures here"
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int:
+    """Run a sweep file's grid (and, with ``--figures``, plot it); 1 if any run failed."""
+    args = build_parser(prog).parse_args(argv)
+    if args.workers < 1:
+        raise SystemExit(f"--workers must be >= 1, got {args.workers}")
     grid = load_sweep(args.sweep)
-    runs = expand(grid, Path(args.out) / Path(args.sweep).stem)
+    root = Path(args.out) / Path(args.sweep).stem
+    runs = expand(grid, root)
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
     counts = run_grid(runs, args.workers, extra, args.dry_run)
     print(f"{len(runs)} runs: {counts}")
+    if args.figures and not args.dry_run:
+        from gentlerl.figures import main as plot
+
+        plot([str(root), "-o", args.figures])
     return 1 if counts["failed"] else 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(prog="python -m gentlerl.sweeps"))

@@ -1,0 +1,94 @@
+"""The ``gentlerl`` command: subcommands, their help (choices and defaults) and dispatch."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from gentlerl import cli
+from gentlerl.envs import TASKS
+from gentlerl.transforms import VARIANTS
+from tests.test_plot import _fake_run
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _help(capsys, *argv):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main([*argv, "--help"])
+    assert exit_info.value.code == 0
+    return " ".join(capsys.readouterr().out.split())
+
+
+def test_the_package_installs_the_gentlerl_command():
+    pyproject = (ROOT / "pyproject.toml").read_text()  # (tomllib is Python >= 3.11 only)
+    assert '[project.scripts]\ngentlerl = "gentlerl.cli:main"\n' in pyproject
+
+
+def test_top_level_help_lists_every_command(capsys):
+    text = _help(capsys)
+    for command in ("train", "sweep", "plot", "video"):
+        assert f" {command} " in text
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["fly"])
+    assert exit_info.value.code == 2
+    assert "invalid choice: 'fly'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("command", "defaults"),
+    [
+        ("sweep", ["(default: runs/sweeps)", "(default: 1)", "{cpu,paper}"]),
+        ("plot", ["(default: figures)", "(default: runs/sweeps)"]),
+        ("video", ["(default: rollout.mp4)", "(default: 240)", "(default: 2)", "(default: 20)"]),
+    ],
+)
+def test_each_command_help_shows_its_options_with_defaults(capsys, command, defaults):
+    text = _help(capsys, command)
+    assert text.startswith(f"usage: gentlerl {command} ")
+    for default in defaults:
+        assert default in text
+
+
+def test_train_help_lists_tasks_variants_scales_and_the_config_defaults():
+    # A fresh process, as a user runs it (hydra's logging setup and pytest's capture disagree).
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    command = [sys.executable, "-m", "gentlerl", "train", "--help"]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    text = " ".join(done.stdout.split())
+    assert f"task={'|'.join(TASKS)}" in text
+    assert "scale: cpu, paper" in text
+    assert "variant: " + ", ".join(sorted(VARIANTS)) in text
+    assert "total_frames: 100000" in text and "seed: 0" in text
+
+
+def test_plot_command_writes_the_figure_set(tmp_path, capsys):
+    _fake_run(tmp_path / "runs", "r", 0, 2.0, (0.0, 1.0, 1.0), [1.0])
+    assert cli.main(["plot", str(tmp_path / "runs"), "-o", str(tmp_path / "figs")]) == 0
+    names = sorted(p.name for p in (tmp_path / "figs").iterdir())
+    assert names == [
+        "impact_histograms.png",
+        "learning_curves.png",
+        "reward_components.png",
+        "summary.csv",
+        "summary.md",
+    ]
+
+
+def test_train_command_runs_the_hydra_app_with_its_overrides(monkeypatch):
+    seen = {}
+
+    def fake_run_path(path, run_name):
+        seen.update(path=path, run_name=run_name, argv=list(sys.argv))
+
+    monkeypatch.setattr(cli.runpy, "run_path", fake_run_path)
+    assert cli.main(["train", "variant=r", "seed=3"]) == 0
+    assert seen == {
+        "path": str(ROOT / "recipes" / "train.py"),
+        "run_name": "__main__",
+        "argv": ["gentlerl train", "variant=r", "seed=3"],
+    }
+    assert sys.argv[0] != "gentlerl train"  # restored
