@@ -34,6 +34,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "sweep": ("gentlerl.sweeps", "run a wandb grid sweep file locally, resumably"),
     "plot": ("gentlerl.figures", "paper-style figures and a summary table from runs or a sweep"),
     "video": ("gentlerl.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
+    "evaluate": ("gentlerl.evaluate", "success, broken rate and impacts of a saved policy"),
 }
 
 
@@ -78,7 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         run_train(rest)
         return 0
     status = importlib.import_module(module).main(rest, prog=f"gentlerl {args.command}")
-    return int(status or 0)
+    return status if isinstance(status, int) else 0  # some mains return their results
 
 
 if __name__ == "__main__":

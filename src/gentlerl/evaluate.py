@@ -76,10 +76,10 @@ def evaluate_policy(
     return {"task": task or cfg.task, **summarize(per_episode)}
 
 
-def main(argv: Sequence[str] | None = None) -> dict[str, float]:
-    parser = argparse.ArgumentParser(
-        prog="python -m gentlerl.evaluate", description=__doc__.splitlines()[0]
-    )
+def main(
+    argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.evaluate"
+) -> dict[str, float]:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("policy", help="a run's checkpoint.pt or best_policy.pt")
     parser.add_argument("--episodes", type=int, default=50, help="default: %(default)s")
     parser.add_argument("--task", choices=TASKS, help="default: the task the policy trained on")
