@@ -1,7 +1,37 @@
-"""Test-session settings."""
+"""Test-session settings and shared fixtures."""
 
+import pytest
 import torch
 
 # One thread: on the 2-core CI machine, two torch threads contend with the env and with
 # collector / ParallelEnv worker processes and made the model-training tests ~20x slower.
 torch.set_num_threads(1)
+
+#: Per-test limit of ``@pytest.mark.slow`` learning runs (the default, in pyproject.toml, is 5 min).
+SLOW_TIMEOUT_S = 3600
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
+
+
+@pytest.fixture
+def hand_env():
+    """``gentlerl.envs.make_env`` whose envs are all closed when the test ends, pass or fail.
+
+    Closing frees each env's physics and GL context at a known point instead of inside a later
+    test's garbage collection.
+    """
+    from gentlerl.envs import make_env
+
+    made = []
+
+    def build(*args, **kwargs):
+        made.append(make_env(*args, **kwargs))
+        return made[-1]
+
+    yield build
+    for env in made:
+        env.close()

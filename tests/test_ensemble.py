@@ -1,5 +1,7 @@
 """Batched Gaussian ensembles and the model losses: equivalence, seeding, learning."""
 
+from contextlib import closing
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -134,9 +136,8 @@ def _toy_transitions(n, gen):
 def _hand_transitions(n, gen, seed):
     from gentlerl.envs import make_env
 
-    return _transitions(make_env("touch", seed=seed), n, gen).exclude(
-        keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)
-    )
+    with closing(make_env("touch", seed=seed)) as env:
+        return _transitions(env, n, gen).exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID))
 
 
 def _transitions(env, n, gen):

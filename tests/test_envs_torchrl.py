@@ -1,6 +1,7 @@
 """The TorchRL view of the hand env: specs, keys, determinism, done flags, rendering errors."""
 
 import ctypes.util
+import gc
 import os
 import subprocess
 import sys
@@ -23,12 +24,12 @@ def _policy(seed: int):
 
 
 @pytest.mark.parametrize("task", TASKS)
-def test_check_env_specs(task):
-    check_env_specs(make_env(task, seed=0))
+def test_check_env_specs(task, hand_env):
+    check_env_specs(hand_env(task, seed=0))
 
 
-def test_observation_shapes_dtypes_and_flat_observation():
-    env = make_env("fragile", seed=0)
+def test_observation_shapes_dtypes_and_flat_observation(hand_env):
+    env = hand_env("fragile", seed=0)
     td = env.rollout(4, _policy(0))
     shapes = {
         keys.JOINT_POS: (4, 24),
@@ -52,24 +53,24 @@ def test_observation_shapes_dtypes_and_flat_observation():
     torch.testing.assert_close(nxt[keys.ACTUATOR_FORCE][-1], last_force)
 
 
-def test_same_seed_same_rollout():
-    envs = [make_env("touch", seed=seed) for seed in (3, 3, 4)]
+def test_same_seed_same_rollout(hand_env):
+    envs = [hand_env("touch", seed=seed) for seed in (3, 3, 4)]
     a, b, _ = (env.rollout(30, _policy(1)) for env in envs)
     assert (a == b).all()
     blocks = [env.dm_env.physics.data.mocap_pos[0].tolist() for env in envs]
     assert blocks[0] == blocks[1] != blocks[2]
 
 
-def test_time_limit_is_truncation():
-    td = make_env("explore", seed=0, time_limit=5).rollout(10, _policy(0))
+def test_time_limit_is_truncation(hand_env):
+    td = hand_env("explore", seed=0, time_limit=5).rollout(10, _policy(0))
     assert td.shape == (5,)
     assert td["next", keys.TRUNCATED].squeeze(-1).tolist() == [False] * 4 + [True]
     assert not td["next", keys.TERMINATED].any()
     assert td["next", keys.DONE].squeeze(-1).tolist() == [False] * 4 + [True]
 
 
-def test_success_is_termination_with_flags():
-    env = make_env("fragile", seed=0, randomize_block=False)
+def test_success_is_termination_with_flags(hand_env):
+    env = hand_env("fragile", seed=0, randomize_block=False)
     action = torch.zeros(20)
     action[3] = 0.25  # flex the index knuckle at a quarter of full speed: a gentle press
 
@@ -82,8 +83,8 @@ def test_success_is_termination_with_flags():
     assert last[keys.TOUCH][:, 0].max() > 5.0
 
 
-def test_bad_actions_raise():
-    env = make_env("touch", seed=0)
+def test_bad_actions_raise(hand_env):
+    env = hand_env("touch", seed=0)
     td = env.reset()
     with pytest.raises(ValueError, match=r"action must have shape \(20,\)"):
         env.step(td.set(keys.ACTION, torch.zeros(3)))
@@ -92,19 +93,34 @@ def test_bad_actions_raise():
 
 
 @pytest.mark.skipif(ctypes.util.find_library("OSMesa") is not None, reason="OSMesa installed")
-def test_render_without_gl_says_what_to_install():
-    env = make_env("touch", seed=0)
+def test_render_without_gl_says_what_to_install(hand_env):
+    env = hand_env("touch", seed=0)
     env.reset()
     with pytest.raises(RuntimeError, match="apt-get install libosmesa6"):
         env.render()
 
 
 @pytest.mark.skipif(ctypes.util.find_library("OSMesa") is None, reason="needs libosmesa6")
-def test_from_pixels():
-    td = make_env("touch", seed=0, from_pixels=True).rollout(2, _policy(0))
+def test_from_pixels(hand_env):
+    td = hand_env("touch", seed=0, from_pixels=True).rollout(2, _policy(0))
     assert td["next", keys.PIXELS].shape == (2, 84, 84, 3)
     assert td["next", keys.PIXELS].dtype == torch.uint8
     assert td["next", keys.PIXELS].float().std() > 0
+
+
+@pytest.mark.skipif(ctypes.util.find_library("OSMesa") is None, reason="needs libosmesa6")
+def test_gl_context_collected_in_a_reference_cycle_does_not_hang():
+    # With dm_control's render thread, the cyclic garbage collector stops that thread before it
+    # runs the context's __del__, which then waits forever for it (the suite hung here).
+    from dm_control._render import executor
+
+    assert executor.RenderExecutor is executor.PassthroughRenderExecutor
+    env = make_env("touch", seed=0, from_pixels=True)
+    env.rollout(2)
+    physics, env.cycle = env.dm_env.physics, env
+    del env
+    assert gc.collect() > 0
+    assert physics._contexts is None  # freed by the env's close()
 
 
 @pytest.mark.skipif(ctypes.util.find_library("OSMesa") is not None, reason="OSMesa installed")

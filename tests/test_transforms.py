@@ -200,12 +200,10 @@ def test_state_dict_round_trip():
 
 
 @pytest.mark.parametrize("variant", ["r+rf+rsp", "r+rf+rs", "r+icm"])
-def test_transformed_hand_env_passes_check_env_specs(variant):
-    from gentlerl.envs import make_env
-
+def test_transformed_hand_env_passes_check_env_specs(variant, hand_env):
     stack = make_reward_transforms(variant, reward_delay=0, hidden=16)
     stack.step(0)
-    env = TransformedEnv(make_env("touch", seed=0), stack.transform)
+    env = TransformedEnv(hand_env("touch", seed=0), stack.transform)
     check_env_specs(env)
     rollout = env.rollout(5)
     assert rollout["next", keys.IMPACT].shape == (5, 5)

@@ -111,6 +111,6 @@ def test_scripted_press_renders_and_colours_the_block_against_the_background(tmp
             assert np.linalg.norm(block - background) > 0.5, (rgba, background)
             assert min(np.linalg.norm(block - c) for c in impact_colours) > 0.5
     finally:
-        env.dm_env.physics.free()
+        env.close()
     with pytest.raises(ValueError, match=r"\.mp4 or \.gif"):
         write_video(frames, tmp_path / "press.avi")

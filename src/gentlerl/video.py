@@ -203,7 +203,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
         frames = record_rollouts(env, actor, args.episodes, args.size, panel=not args.no_panel)
         print(write_video(frames, args.out, fps=args.fps))
     finally:
-        env.dm_env.physics.free()  # release the GL context before interpreter shutdown
+        env.close()  # release the GL context before interpreter shutdown
 
 
 if __name__ == "__main__":

@@ -5,6 +5,12 @@ that cannot load (e.g. ``MUJOCO_GL=osmesa`` without libOSMesa) crashes that impo
 PyOpenGL. :func:`configure_gl` runs before dm_control is imported: on a headless machine it picks
 OSMesa when the library is installed, and otherwise disables rendering so that everything else
 works; :func:`render` turns a missing backend into an error that says what to install.
+
+It also turns off dm_control's render-thread offloading (``DISABLE_RENDER_THREAD_OFFLOADING``,
+unless the user set it). With offloading, a GL context freed by the cyclic garbage collector hangs
+the process: the collector clears the weakref that keeps the context's worker thread alive, the
+thread exits, and the context's ``__del__`` then waits forever on a job no thread will run.
+Rendering on the calling thread has no such job, and gentlerl renders from one thread only.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ INSTALL_HINT = (
 
 def configure_gl() -> None:
     """Choose dm_control's OpenGL backend before it is imported (see module docstring)."""
+    os.environ.setdefault("DISABLE_RENDER_THREAD_OFFLOADING", "1")
     backend = os.environ.get("MUJOCO_GL")
     has_osmesa = ctypes.util.find_library("OSMesa") is not None
     if backend is None and not os.environ.get("DISPLAY"):

@@ -66,6 +66,7 @@ class HandEnv(EnvBase):
         self.action_spec = Bounded(-1.0, 1.0, (20,), device=device)
         self.reward_spec = Unbounded((1,), device=device)
         self.full_done_spec = Composite(done=_flag(), terminated=_flag(), truncated=_flag())
+        self.is_closed = False  # EnvBase starts "closed"; open, ``__del__`` and collectors close it
 
     def _output(self, flags: dict[str, bool]) -> TensorDictBase:
         """This step's tensordict: the task's float32 buffer as views, plus bool ``flags``."""
@@ -86,6 +87,12 @@ class HandEnv(EnvBase):
         return render(
             self.dm_env.physics, height or self.pixel_size, width or self.pixel_size, "side"
         )
+
+    def close(self, *, raise_if_closed: bool = True) -> None:
+        """Free the physics and its GL context now, not whenever the garbage collector runs."""
+        if not self.is_closed:
+            self.dm_env.physics.free()
+        super().close(raise_if_closed=raise_if_closed)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         self.dm_env.reset()
