@@ -156,3 +156,52 @@ def test_gaussian_nll_and_mixture_are_finite(x, mu, var):
     variance = torch.tensor([[var], [0.0]])
     m, v = mixture_moments(mean, variance)
     assert torch.isfinite(m).all() and torch.isfinite(v).all() and (v >= 0).all()
+
+
+NON_FINITE = (float("nan"), float("inf"), float("-inf"))
+
+
+def test_impact_penalty_is_never_positive_even_for_a_negative_impact():
+    # An impact is never negative (eq. 1); a negative value counts as no impact. Before, -5 N gave
+    # -(1 - sigmoid(2 * 7)) * -5 = +4e-6.
+    assert impact_penalty(torch.tensor([-5.0])).item() == 0.0
+    assert impact_penalty(torch.tensor([-5.0, 1.0])).item() == pytest.approx(-0.1192, abs=1e-4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(finite, min_size=5, max_size=5), finite, st.floats(0.0, 2.0**50, width=32))
+def test_impact_penalty_is_non_positive_for_every_finite_input(m, lam2, lam1):
+    assert impact_penalty(torch.tensor(m), lam1, lam2).item() <= 0.0
+
+
+@pytest.mark.parametrize("bad", NON_FINITE)
+def test_non_finite_force_or_impact_never_gives_a_finite_penalty(bad):
+    force = torch.zeros(2, 5, 3)
+    next_force = torch.ones(2, 5, 3)
+    next_force[0, 2, 1] = bad
+    m = impact(force, next_force)
+    assert not torch.isfinite(m[0, 2]) and torch.isfinite(m[1]).all()
+    p = impact_penalty(m)
+    assert not torch.isfinite(p[0]) and torch.isfinite(p[1])
+    force[1, 0, 0] = bad  # the previous force is as dangerous as the next one
+    assert not torch.isfinite(impact_penalty(impact(force, next_force))).any()
+
+
+@pytest.mark.parametrize("bad", NON_FINITE)
+def test_penalty_surprise_of_a_non_finite_penalty_or_nll_is_not_finite(bad):
+    # NaN < 0 is False: eq. 8's "otherwise 0" branch used to turn a NaN penalty into reward 0.
+    assert not torch.isfinite(penalty_surprise(torch.tensor(bad), torch.tensor(1.0)))
+    for penalty in (0.0, -1.0):
+        assert not torch.isfinite(penalty_surprise(torch.tensor(penalty), torch.tensor(bad)))
+    assert penalty_surprise(torch.tensor(0.0), torch.tensor(1.0)).item() == 0.0
+
+
+@pytest.mark.parametrize("bad", NON_FINITE)
+def test_gaussian_nll_and_mixture_of_non_finite_inputs_are_not_finite(bad):
+    one, b = torch.tensor(1.0), torch.tensor(bad)
+    for x, mu, var in ((b, one, one), (one, b, one), (one, one, b)):
+        assert not torch.isfinite(gaussian_nll(x, mu, var)), (x, mu, var)
+    mean, var = mixture_moments(torch.tensor([[1.0], [bad]]), torch.ones(2, 1))
+    assert not torch.isfinite(gaussian_nll(one, mean, var))
+    mean, var = mixture_moments(torch.ones(2, 1), torch.tensor([[1.0], [bad]]))
+    assert not torch.isfinite(gaussian_nll(one, mean, var))

@@ -1,9 +1,12 @@
 """Gentleness transforms: hand-computed rewards and the TorchRL transform checklist."""
 
 import math
+from functools import cache
 
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs import Compose, ParallelEnv, SerialEnv, TransformedEnv
@@ -310,3 +313,60 @@ def test_icm_reward_is_half_eta_times_the_squared_feature_error():
     expected = 1.5 * (predicted_next - next_phi).pow(2).sum(-1, keepdim=True)
     torch.testing.assert_close(out, expected.detach())
     assert (out > 0).all()
+
+
+@cache
+def _active_stack(variant):
+    stack = make_reward_transforms(variant, reward_delay=0, hidden=16, ensemble_size=2)
+    stack.step(0)  # the gate is open: the models' rewards count
+    return stack
+
+
+def _transitions(touch, next_touch):
+    n = touch.shape[0]
+    gen = torch.Generator().manual_seed(0)
+    pos, vel, next_pos, next_vel = (torch.randn(n, 24, generator=gen) for _ in range(4))
+
+    def obs(p, v, t):
+        return {
+            keys.JOINT_POS: p,
+            keys.JOINT_VEL: v,
+            keys.TOUCH: t,
+            keys.OBSERVATION: torch.cat([p, v, t.flatten(1)], -1),
+        }
+
+    td = {**obs(pos, vel, touch), keys.ACTION: torch.rand(n, 20, generator=gen) * 2 - 1}
+    return TensorDict({**td, "next": obs(next_pos, next_vel, next_touch)}, [n])
+
+
+@pytest.mark.parametrize("variant", ["r+rf+rs", "r+rf+rsp", "r+icm"])
+@settings(max_examples=25, deadline=None)
+@given(
+    row=st.integers(0, 3),
+    site=st.integers(0, 4),
+    channel=st.integers(0, 2),
+    bad=st.sampled_from([float("nan"), float("inf"), float("-inf")]),
+    in_next=st.booleans(),
+)
+def test_no_finite_reward_from_non_finite_forces(variant, row, site, channel, bad, in_next):
+    """A NaN / inf force at s_t or s_{t+1} makes every reward of that transition non-finite (so
+    the loop stops on it); the other transitions keep finite rewards."""
+    stack = _active_stack(variant)
+    touch, next_touch = torch.rand(4, 5, 3) * 3, torch.rand(4, 5, 3) * 3
+    (next_touch if in_next else touch)[row, site, channel] = bad
+    out = stack.transform(_transitions(touch, next_touch))
+    others = [i for i in range(4) if i != row]
+    for key in [k for k in stack.reward_keys if k != keys.REWARD] + [keys.PENALTY]:
+        reward = out["next", key].squeeze(-1)
+        assert not torch.isfinite(reward[row]), (key, reward)
+        assert torch.isfinite(reward[others]).all(), (key, reward)
+
+
+def test_the_intrinsic_gate_keeps_nan_while_closed():
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=10, hidden=16, ensemble_size=2)
+    stack.step(0)
+    assert not stack.intrinsic_on
+    touch = torch.rand(2, 5, 3)
+    touch[0, 0, 0] = float("nan")
+    surprise = stack.transform(_transitions(touch, touch + 1))["next", keys.PENALTY_SURPRISE]
+    assert torch.isnan(surprise[0]).all() and surprise[1].item() == 0.0

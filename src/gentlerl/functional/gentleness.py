@@ -5,6 +5,10 @@ All functions are pure, differentiable where it makes sense, and finite for fini
 magnitude up to ~1e15 in float32 (tested; beyond that, squares and sums can overflow float32's
 3.4e38). Variances are floored (``gaussian_nll``'s ``min_var``) so a collapsed variance gives a
 large but finite NLL.
+
+A non-finite input never becomes a finite reward: NaN and +-inf propagate as NaN or +-inf
+(:func:`_floor` keeps them through every ``max``), so a broken sensor or a diverged model shows up
+as a non-finite reward that the training loop stops on, not as a plausible number.
 """
 
 from __future__ import annotations
@@ -25,6 +29,15 @@ __all__ = [
 ]
 
 _LOG_2PI = math.log(2.0 * math.pi)
+
+
+def _floor(x: torch.Tensor, low: float) -> torch.Tensor:
+    """``max(x, low)`` elementwise, except that ``-inf`` becomes NaN (and NaN stays NaN).
+
+    ``clamp_min`` would map ``-inf`` to ``low``, a finite value from a non-finite input.
+    ``x * 0`` is 0 for finite ``x`` and NaN for infinite ``x``.
+    """
+    return torch.where(x < low, x * 0.0 + low, x)
 
 
 def impact(force: torch.Tensor, next_force: torch.Tensor) -> torch.Tensor:
@@ -48,7 +61,7 @@ def impact(force: torch.Tensor, next_force: torch.Tensor) -> torch.Tensor:
         raise ValueError(
             f"force must have shape [..., n_sites, n_channels], got {tuple(force.shape)}"
         )
-    return (next_force - force).clamp_min(0.0).sum(-1)
+    return _floor(next_force - force, 0.0).sum(-1)
 
 
 def acceptability(x: torch.Tensor, lam1: float, lam2: float) -> torch.Tensor:
@@ -69,11 +82,14 @@ def impact_penalty(impact: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0) -
     a 2 N impact costs ``-(1 - sigmoid(0)) * 2 = -1.0``.
 
     Args:
-        impact: ``[..., n_sites]`` impacts :math:`m^i_t` (N), from :func:`impact`.
+        impact: ``[..., n_sites]`` impacts :math:`m^i_t` (N), from :func:`impact`. An impact is
+            never negative; a negative value counts as no impact, so the penalty is <= 0 for
+            every finite input (NaN / inf give NaN / -inf).
 
     Returns:
         ``[...]`` penalty (<= 0).
     """
+    impact = _floor(impact, 0.0)
     return -((1.0 - acceptability(impact, lam1, lam2)) * impact).sum(-1)
 
 
@@ -163,11 +179,12 @@ def gaussian_nll(
 
     .. math:: \tfrac12 \left(\log 2\pi\sigma^2 + (x - \mu)^2 / \sigma^2\right)
 
-    ``var`` is floored at ``min_var`` so that a collapsed variance gives a large but finite value.
+    ``var`` is floored at ``min_var`` so that a collapsed variance gives a large but finite value;
+    a non-finite ``x``, ``mean`` or ``var`` gives NaN or inf.
     """
-    if min_var <= 0:
+    if not min_var > 0:
         raise ValueError(f"min_var must be > 0, got {min_var}")
-    var = var.clamp_min(min_var)
+    var = _floor(var, min_var)
     return 0.5 * (_LOG_2PI + var.log() + (x - mean).pow(2) / var)
 
 
@@ -198,8 +215,10 @@ def penalty_surprise(
         lam1, lam2: :math:`\lambda'` (paper: :math:`\lambda'_1 = 2`, :math:`\lambda'_2 \in [1, 4]`).
 
     Returns:
-        ``[...]`` penalty surprise; exactly 0 where ``penalty == 0``.
+        ``[...]`` penalty surprise; exactly 0 where ``penalty >= 0`` and both inputs are finite;
+        NaN or inf where either is not (eq. 8's "otherwise" branch must not hide a NaN penalty).
     """
     weight = acceptability(-penalty, lam1, lam2)
     surprise = weight * (nll - penalty)
-    return torch.where(penalty < 0, surprise, torch.zeros_like(surprise))
+    no_penalty = (penalty >= 0) & torch.isfinite(penalty) & torch.isfinite(nll)
+    return torch.where(no_penalty, torch.zeros_like(surprise), surprise)

@@ -93,4 +93,6 @@ class ModelRewardTransform(TransitionTransform):
         self.register_buffer("active", torch.tensor(False))
 
     def _gate(self, reward: torch.Tensor) -> torch.Tensor:
+        # A multiply, not a ``where``: NaN * 0 stays NaN, so a diverged model is seen (and stops
+        # training) during the reward delay too, instead of surfacing when the gate opens.
         return reward * (self.scale * self.active.to(reward.dtype))
