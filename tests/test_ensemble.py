@@ -64,8 +64,26 @@ def test_bad_shapes_raise():
     with pytest.raises(ValueError, match="min_var"):
         GaussianEnsemble(4, 2, min_var=0.0)
     loss = EnsembleModelLoss(PenaltyModel(3, 1, ensemble_size=3), name="penalty")
-    with pytest.raises(ValueError, match=r"\[ensemble_size=3, B\]"):
-        loss(_penalty_batch(torch.Generator().manual_seed(0), 8))
+    with pytest.raises(ValueError, match=r"\[ensemble_size=3, B\], got \(4, 8\)"):
+        loss(_penalty_batch(torch.Generator().manual_seed(0), 4, shape=(4, 8)))
+
+
+def test_a_flat_batch_is_resampled_once_per_member():
+    loss = EnsembleModelLoss(PenaltyModel(3, 1, ensemble_size=3), name="penalty").eval()
+    flat = _penalty_batch(torch.Generator().manual_seed(0), 64)
+    torch.manual_seed(1)
+    members = loss.bootstrap(flat)
+    assert members.batch_size == (3, 64)
+    rows = flat[keys.OBSERVATION]
+    for e in range(3):  # every row of member e is a row of the batch (drawn with replacement)
+        match = (members[e][keys.OBSERVATION][:, None] == rows[None]).all(-1)
+        assert match.any(-1).all()
+        assert 0.5 < match.any(0).float().mean() < 0.75  # ~1 - 1/e = 63% distinct rows
+    assert not torch.equal(members[0][keys.OBSERVATION], members[1][keys.OBSERVATION])
+    torch.manual_seed(1)
+    flat_loss = loss(flat)["loss_penalty"]
+    torch.manual_seed(1)
+    assert flat_loss == loss(loss.bootstrap(flat))["loss_penalty"]  # [E, B] is used as given
 
 
 def test_dynamics_prediction_is_an_exact_change_of_variables():

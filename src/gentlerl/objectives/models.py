@@ -19,9 +19,11 @@ from gentlerl.models.icm import ICMModel
 class EnsembleModelLoss(LossModule):
     """Gaussian NLL of a :class:`DynamicsModel` or :class:`PenaltyModel` ensemble.
 
-    Bootstrap (paper: "trained on different batches of transitions"): with ``per_member=True`` the
-    batch must be shaped ``[E, B]`` — member e is trained on ``batch[e]`` only. With ``False`` a
-    ``[B]`` batch is shared by all members (they still differ by their seeded initialisation).
+    Bootstrap (paper: "trained on different batches of transitions"): with ``per_member=True``
+    member e is trained on its own transitions. Pass either ``[E, B]`` (member e gets ``batch[e]``,
+    e.g. ``rb.sample(E * B).reshape(E, B)``) or a flat ``[B]`` batch, which :meth:`bootstrap`
+    resamples with replacement once per member. With ``False`` a ``[B]`` batch is shared by all
+    members (they still differ by their seeded initialisation).
 
     The loss keeps a *target* copy of the model (``target_model_params``, normaliser statistics
     included) for the surprise transforms; update it with TorchRL's ``HardUpdate`` (paper: every
@@ -49,12 +51,25 @@ class EnsembleModelLoss(LossModule):
     def ensemble_size(self) -> int:
         return self.model.ensemble_size
 
+    def bootstrap(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """``[E, B]`` as given; a flat ``[B]`` batch as ``[E, B]``, one bootstrap resample per member.
+
+        Each member draws ``B`` transitions with replacement (torch's global RNG) from the batch.
+        """
+        size, e = tensordict.batch_size, self.ensemble_size
+        if len(size) == 2 and size[0] == e:
+            return tensordict
+        if len(size) == 1 and size[0] > 0:
+            index = torch.randint(size[0], (e, size[0]), device=tensordict.device)
+            return tensordict[index]
+        raise ValueError(
+            f"per_member=True needs a flat batch [B] or one shaped [ensemble_size={e}, B], "
+            f"got {tuple(size)}"
+        )
+
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
-        if self.per_member and tensordict.batch_size[:1] != torch.Size([self.ensemble_size]):
-            raise ValueError(
-                f"per_member=True needs a batch shaped [ensemble_size={self.ensemble_size}, B], "
-                f"got {tuple(tensordict.batch_size)}"
-            )
+        if self.per_member:
+            tensordict = self.bootstrap(tensordict)
         with self.model_params.to_module(self.model, preserve_module_state=False):
             if self.training:
                 self.model.update_normalizers(tensordict)
