@@ -101,8 +101,9 @@ def force_penalty(force: torch.Tensor, lam1: float = 2.0, lam2: float = 8.0) -> 
     a sustained press wears it for as long as it lasts. The acceptability sigmoid (eq. 3) keeps
     the penalty's shape: forces well below :math:`\lambda_2` are almost free, above it each newton
     costs about one unit. The default :math:`\lambda = [2, 8]` lets the hand press as hard as the
-    touch task needs (> 5 N normal, ~6.3 N summed over channels for a straight press: cost 0.2)
-    and makes every newton past ~8 N cost (10 N: -9.8).
+    touch task needs (> 5 N normal; one flexing knuckle holds 6.6 N summed over channels when it
+    gets there slowly, cost 0.38) and charges hurrying (the same press at the paper calibration's
+    action scale arrives with 8.1 N: cost 4.4) and every newton past ~8 N (10 N: -9.8).
 
     Args:
         force: ``[..., n_sites, n_channels]`` non-negative sensed force at step t+1 (N), e.g. the
@@ -127,8 +128,8 @@ def torque_penalty(torque: torch.Tensor, lam1: float = 4.0, lam2: float = 1.0) -
     driven, the magnitude is what strains the motor and tendon. Efforts well below
     :math:`\lambda_2` are almost free, so holding the hand up against gravity costs little, and
     each unit above it costs about one unit. The default :math:`\lambda = [4, 1]` (N m for the
-    Shadow Hand's joint actuators, whose limits are 2.2-4.8 N m) makes the ~0.5 N m that a
-    finger needs for the touch task's 5 N press cost 0.06 and 2 N m cost 1.96.
+    Shadow Hand's joint actuators, whose limits are 2.2-4.8 N m) makes the 0.54-0.61 N m that a
+    knuckle exerts for the touch task's 5 N press cost 0.07-0.11 and 2 N m cost 1.96.
 
     Args:
         torque: ``[..., n_actuators]`` actuator forces after the step (the hand's

@@ -66,7 +66,7 @@ class ForcePenalty(_LevelPenalty):
 
     Args:
         lam: :math:`\lambda` of the acceptability sigmoid; default ``[2, 8]``: the touch task's
-            press (~6.3 N in total) costs 0.2, 10 N costs 9.8.
+            press (6.6 N in total when slow) costs 0.38, 10 N costs 9.8.
         in_keys: ``[force_key]``; out_keys: ``[penalty_key]``.
 
     Examples:
@@ -90,8 +90,8 @@ class TorquePenalty(_LevelPenalty):
     Reads the hand env's ``actuator_force`` ``[20]`` by default; any ``[..., n_actuators]`` key works.
 
     Args:
-        lam: :math:`\lambda` of the acceptability sigmoid; default ``[4, 1]`` (N m): the ~0.5 N m
-            of a finger pressing for the touch task costs 0.06, 2 N m costs 1.96.
+        lam: :math:`\lambda` of the acceptability sigmoid; default ``[4, 1]`` (N m): the ~0.55 N m
+            of a knuckle pressing for the touch task costs 0.08, 2 N m costs 1.96.
         in_keys: ``[actuator_force_key]``; out_keys: ``[penalty_key]``.
 
     Examples:
