@@ -7,6 +7,8 @@ deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resum
 ``DONE`` marker exists is skipped, one with a checkpoint is continued (``resume=true``). Grid points
 that differ only in ``lam_prime`` for a variant without penalty surprise are run once (the
 parameter does not affect them). The same files work with ``wandb sweep`` / ``wandb agent``.
+``--backend ray`` runs each grid point as a Ray task instead, on a local Ray or a cluster
+(:mod:`gentlerl.distributed.sweeps`, docs/DISTRIBUTED.md).
 """
 
 from __future__ import annotations
@@ -31,10 +33,14 @@ from gentlerl.training.loop import DONE_MARKER
 class GridRun:
     overrides: tuple[tuple[str, Any], ...]
     run_dir: Path
+    #: The recipe script; None: recipes/train.py of the gentlerl that runs :meth:`command`
+    #: (on a Ray cluster, the worker node's checkout).
+    script: Path | None = None
 
     def command(self, extra: Sequence[str] = ()) -> list[str]:
         args = [f"{k}={_format(v)}" for k, v in self.overrides]
-        return [sys.executable, str(TRAIN_SCRIPT), *args, *extra, f"run_dir={self.run_dir}"]
+        script = str(self.script or TRAIN_SCRIPT)
+        return [sys.executable, script, *args, *extra, f"run_dir={self.run_dir}"]
 
 
 def _format(value: Any) -> str:
@@ -89,23 +95,33 @@ def run_grid(
     runs: Sequence[GridRun], workers: int = 1, extra: Sequence[str] = (), dry_run: bool = False
 ) -> dict[str, int]:
     """Run (or, ``dry_run``, print) the grid; counts ``done``/``skipped``/``failed``/``planned``."""
-    todo = [r for r in runs if not (r.run_dir / DONE_MARKER).exists()]
+    todo = pending(runs)
     counts = {"skipped": len(runs) - len(todo), "done": 0, "failed": 0, "planned": 0}
-
-    def one(run: GridRun) -> int:
-        resume = ["resume=true"] if (run.run_dir / "checkpoint.pt").exists() else []
-        command = run.command([*extra, *resume])
-        print(" ".join(command), flush=True)
-        if dry_run:
-            return 0
-        run.run_dir.mkdir(parents=True, exist_ok=True)
-        with (run.run_dir / "stdout.log").open("a") as log:
-            return subprocess.call(command, stdout=log, stderr=subprocess.STDOUT)
-
     with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
-        for code in pool.map(one, todo):
+        for code in pool.map(lambda run: run_point(run, extra, dry_run), todo):
             counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
     return counts
+
+
+def pending(runs: Sequence[GridRun]) -> list[GridRun]:
+    """The runs without a ``DONE`` marker."""
+    return [r for r in runs if not (r.run_dir / DONE_MARKER).exists()]
+
+
+def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) -> int:
+    """Run one grid point (``resume=true`` if it has a checkpoint); the recipe's exit code.
+
+    Output goes to ``run_dir/stdout.log``. The Ray backend calls this on the worker node.
+    """
+    resume = ["resume=true"] if (run.run_dir / "checkpoint.pt").exists() else []
+    command = run.command([*extra, *resume])
+    print(" ".join(command), flush=True)
+    if dry_run:
+        return 0
+    run.run_dir.mkdir(parents=True, exist_ok=True)
+    with (run.run_dir / "stdout.log").open("a") as log:
+        # subprocess.call kills the recipe when interrupted (Ctrl-C, a cancelled Ray task).
+        return subprocess.call(command, stdout=log, stderr=subprocess.STDOUT)
 
 
 def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
@@ -127,6 +143,15 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
     parser.add_argument(
         "--figures", default=None, help="afterwards, write the paper-style figures here"
     )
+    parser.add_argument(
+        "--backend", choices=("local", "ray"), default="local",
+        help="local: --workers processes here; ray: one Ray task per run (docs/DISTRIBUTED.md)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--address", default=None, help="ray: 'auto', host:port or ray://host:port (default: "
+        "a local Ray with --workers x --cpus-per-run CPUs)",
+    )  # fmt: skip
+    parser.add_argument("--cpus-per-run", type=float, default=1.0, help="ray: CPUs per run")
     return parser
 
 
@@ -139,7 +164,17 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     root = Path(args.out) / Path(args.sweep).stem
     runs = expand(grid, root)
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
-    counts = run_grid(runs, args.workers, extra, args.dry_run)
+    if args.backend == "ray" and not args.dry_run:
+        from gentlerl.distributed.cluster import ClusterError
+        from gentlerl.distributed.sweeps import run_grid_on_ray
+
+        cpus = max(1, round(args.workers * args.cpus_per_run))
+        try:
+            counts = run_grid_on_ray(runs, extra, args.address, args.cpus_per_run, cpus)
+        except ClusterError as err:
+            raise SystemExit(str(err)) from None
+    else:
+        counts = run_grid(runs, args.workers, extra, args.dry_run)
     print(f"{len(runs)} runs: {counts}")
     if args.figures and not args.dry_run:
         from gentlerl.figures import main as plot

@@ -1,0 +1,94 @@
+"""Start a local Ray or join a cluster, with clear errors instead of hangs.
+
+``ray.init`` on an address that does not answer retries for minutes; a plain TCP connection
+with a timeout tells within seconds whether anything listens there.
+"""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import ModuleType
+from typing import Any
+
+#: The one line printed when Ray is missing.
+RAY_EXTRA = "ray is not installed; install gentlerl's ray extra: pip install -e '.[ray]'"
+#: Seconds the TCP probe of a cluster address waits.
+CONNECT_TIMEOUT_S = 10.0
+#: Ray's ports when an address names none: the client server (ray://) and the GCS.
+_DEFAULT_PORTS = {"ray://": 10001, "": 6379}
+
+
+class ClusterError(RuntimeError):
+    """Ray is missing or the cluster cannot be reached; the message says which and what to do."""
+
+
+def import_ray() -> ModuleType:
+    """``import ray``, or :class:`ClusterError` naming the extra to install."""
+    try:
+        import ray
+    except ImportError as err:
+        raise ClusterError(RAY_EXTRA) from err
+    return ray
+
+
+def parse_address(address: str) -> tuple[str, int]:
+    """``ray://host:port`` or ``host:port`` -> (host, port); a bad address is a ``ValueError``."""
+    scheme = "ray://" if address.startswith("ray://") else ""
+    hostport = address[len(scheme) :]
+    host, _, port = hostport.rpartition(":") if ":" in hostport else (hostport, "", "")
+    if not host:
+        raise ValueError(f"ray address {address!r} is not 'auto', 'host:port' or 'ray://host:port'")
+    if not port:
+        return host, _DEFAULT_PORTS[scheme]
+    if not port.isdigit():
+        raise ValueError(f"ray address {address!r}: port {port!r} is not a number")
+    return host, int(port)
+
+
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise :class:`ClusterError` unless something accepts TCP connections at ``address``."""
+    host, port = parse_address(address)
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as err:
+        raise ClusterError(
+            f"cannot reach the Ray cluster at {address!r} ({host}:{port}: {err}); start one with "
+            "`ray start --head` and pass its address (see docs/DISTRIBUTED.md)"
+        ) from err
+
+
+@contextmanager
+def connect(
+    address: str | None = None, num_cpus: int | None = None, **init_kwargs: Any
+) -> Iterator[ModuleType]:
+    """Ray, initialised for the ``with`` block: joined at ``address`` or started locally.
+
+    ``address`` None starts a local Ray with ``num_cpus`` CPUs (all of them if None); ``"auto"``
+    joins the cluster started on this machine by ``ray start``; ``host:port`` or
+    ``ray://host:port`` joins a remote one (checked within :data:`CONNECT_TIMEOUT_S`). A Ray
+    already initialised in this process is reused and left running. A Ray this call started or
+    joined is shut down (disconnected) on exit, so a local one leaves no processes behind.
+    """
+    ray = import_ray()
+    if ray.is_initialized():
+        yield ray
+        return
+    if address not in (None, "auto"):
+        check_reachable(address)
+    kwargs: dict[str, Any] = {"include_dashboard": False, **init_kwargs}
+    if address is None:
+        # "local": a new Ray even when a `ray start` cluster runs here (that one needs "auto").
+        address, kwargs["num_cpus"] = "local", num_cpus
+    try:
+        ray.init(address=address, **kwargs)
+    except ConnectionError as err:
+        raise ClusterError(
+            f"no Ray cluster found for address={address!r} ({err}); start one with "
+            "`ray start --head` (see docs/DISTRIBUTED.md)"
+        ) from err
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
