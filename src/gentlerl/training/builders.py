@@ -32,10 +32,17 @@ AGENT_KEYS = (
 
 
 def default_env_factory(cfg: TrainConfig) -> EnvFactory:
-    """``gentlerl.envs.make_env`` for ``cfg.task`` with ``cfg.env_kwargs``."""
+    """``gentlerl.envs.make_env`` for ``cfg.task`` with ``cfg.env_kwargs``, seeded with ``cfg.seed``."""
     from gentlerl.envs import make_env
 
-    return partial(make_env, cfg.task, **cfg.env_kwargs)
+    return partial(make_env, cfg.task, seed=cfg.seed, **cfg.env_kwargs)
+
+
+def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
+    """``env_factory()`` seeded before anything resets it (collectors reset the env they build)."""
+    env = env_factory()
+    env.set_seed(seed)
+    return env
 
 
 #: What the loop reads from every env step besides the variant's reward components.
@@ -150,8 +157,13 @@ def make_collector(
     policy: torch.nn.Module,
     frames_left: int,
     random_left: int,
+    seed: int,
 ) -> Collector | MultiSyncCollector:
     """TorchRL ``Collector`` (one process) or ``MultiSyncCollector`` (``num_workers`` processes).
+
+    Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset, so the
+    first episode (its block position) is reproducible too; ``collector.set_seed`` comes too late
+    for it.
 
     The multi-process collector is the *synchronous* one: it stacks the workers' batches into
     ``[num_workers, T]``, so each row stays time-contiguous across batches (what the n-step
@@ -166,10 +178,9 @@ def make_collector(
         auto_register_policy_transforms=False,
     )
     if cfg.collector == "single":
-        return Collector(env_factory, policy, **common)
-    return MultiSyncCollector(
-        [env_factory] * cfg.num_workers, policy, cat_results="stack", **common
-    )
+        return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
+    factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]
+    return MultiSyncCollector(factories, policy, cat_results="stack", **common)
 
 
 def _head_v_max(cfg: TrainConfig, reward_key: str) -> float:

@@ -239,8 +239,9 @@ class Trainer:
         cfg, c = self.cfg, self.counters
         policy = make_exploration(self.learner, cfg, self.action_dim)
         random_left = max(cfg.init_random_frames - c["frames"], 0)
-        collector = make_collector(cfg, self.env_factory, policy, frames_left, random_left)
-        collector.set_seed(cfg.seed + c["frames"])
+        seed = cfg.seed + c["frames"]
+        collector = make_collector(cfg, self.env_factory, policy, frames_left, random_left, seed)
+        collector.set_seed(seed)
         pending: dict[str, list[float]] = defaultdict(list)
         recent: list[dict[str, float]] = []
         next_eval = (c["frames"] // cfg.eval_every_frames + 1) * cfg.eval_every_frames
