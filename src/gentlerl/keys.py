@@ -12,6 +12,10 @@ TOUCH_GRID = "touch_grid"  # [5, 3, 4, 4] raw touch-grid readings (N)
 ACTUATOR_FORCE = "actuator_force"  # [20] force of each position actuator (N m at the joints)
 OBSERVATION = "observation"  # [63] flat state for actor / critic: joint_pos, joint_vel, touch
 PIXELS = "pixels"
+# Written by the driver-backed env (gentlerl.envs.DriverHandEnv) besides the keys above.
+TACTILE = "tactile"  # [5, R] raw tactile channels as the driver reads them (sensor units)
+BLOCK_FORCE = "block_force"  # [1] force on the block (N), when the driver measures it
+WATCHDOG = "watchdog"  # [1] bool: the force watchdog ended the episode at this step
 
 ACTION = "action"
 REWARD = "reward"  # task reward r_t, [1]

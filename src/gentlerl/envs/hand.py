@@ -151,14 +151,24 @@ class Explore(base.Task):
         self.success = self.broken = False
 
     def before_step(self, action: np.ndarray, physics: HandPhysics) -> None:
+        low, high = physics.model.actuator_ctrlrange.T
+        physics.data.ctrl[:] = self.next_targets(physics.data.ctrl, action, low, high)
+
+    def next_targets(
+        self, targets: np.ndarray, action: np.ndarray, low: np.ndarray, high: np.ndarray
+    ) -> np.ndarray:
+        """The position targets after a delta-position ``action`` in [-1, 1]^n (paper, "Agent").
+
+        ``clip(targets + clip(action, -1, 1) * action_scale * (high - low), low, high)``; a
+        wrong-shaped or non-finite ``action`` raises ``ValueError``.
+        """
         action = np.asarray(action, dtype=np.float64)
-        if action.shape != (physics.model.nu,):
-            raise ValueError(f"action must have shape ({physics.model.nu},), got {action.shape}")
+        if action.shape != np.shape(low):
+            raise ValueError(f"action must have shape {np.shape(low)}, got {action.shape}")
         if not np.isfinite(action).all():
             raise ValueError(f"action must be finite, got {action}")
-        low, high = physics.model.actuator_ctrlrange.T
         delta = np.clip(action, -1.0, 1.0) * self.action_scale * (high - low)
-        physics.data.ctrl[:] = np.clip(physics.data.ctrl + delta, low, high)
+        return np.clip(targets + delta, low, high)
 
     def after_step(self, physics: HandPhysics) -> None:
         previous = self._observe(physics)

@@ -93,7 +93,8 @@ class EpisodeTracker:
 
     Episodes are told apart by the collector's trajectory ids; an episode is reported once its
     ``("next", "done")`` flag is seen. Per episode: the return of each reward component, success,
-    broken, the maximum impact over steps and sites (N), and the length.
+    broken, the maximum impact over steps and sites (N), and the length; with a force watchdog
+    (``DriverHandEnv``), ``watchdog``: whether it ended the episode.
     """
 
     def __init__(self, reward_keys: list[str]) -> None:
@@ -114,6 +115,9 @@ class EpisodeTracker:
         impact = nxt.get(keys.IMPACT).reshape(len(batch), -1).amax(-1)
         success = nxt.get(keys.SUCCESS).reshape(-1).float()
         broken = nxt.get(keys.BROKEN).reshape(-1).float()
+        watchdog = nxt.get(keys.WATCHDOG, None)
+        if watchdog is not None:
+            watchdog = watchdog.reshape(-1).float()
         finished = []
         for tid in torch.unique(traj).tolist():
             mask = traj == tid
@@ -124,6 +128,8 @@ class EpisodeTracker:
             stats["success"] = max(stats["success"], success[mask].max().item())
             stats["broken"] = max(stats["broken"], broken[mask].max().item())
             stats["length"] += mask.sum().item()
+            if watchdog is not None:
+                stats["watchdog"] = max(stats.get("watchdog", 0.0), watchdog[mask].max().item())
             if done[mask].any():
                 finished.append(self._open.pop(tid))
         return finished

@@ -25,6 +25,7 @@ whole stack for a paper variant.
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
+from gentlerl.transforms.calibration import TouchCalibration
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty
 from gentlerl.transforms.stack import HAND_FEATURES, VARIANTS, RewardStack, make_reward_transforms
@@ -46,6 +47,7 @@ __all__ = [
     "PenaltySurprise",
     "RewardStack",
     "TorquePenalty",
+    "TouchCalibration",
     "TransitionTransform",
     "make_reward_transforms",
 ]
