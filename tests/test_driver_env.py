@@ -103,6 +103,9 @@ def test_simulated_press_succeeds_with_calibrated_touch(sim_calibration):
     assert abs(touch - driver.true_touch()[0, 0]) < 0.5 and touch > 5.0
     assert abs(steps[-1][keys.BLOCK_FORCE].item() - driver.true_touch()[0, 0]) < 0.5
     torch.testing.assert_close(steps[keys.TOUCH], steps[keys.TOUCH_GRID].sum((-2, -1)))
+    effort = torch.from_numpy(driver.physics.data.actuator_force).float()
+    torch.testing.assert_close(steps[-1][keys.ACTUATOR_FORCE], effort)
+    assert steps[-1][keys.ACTUATOR_FORCE][A_FFJ2] > 0.1  # the knuckle pushes against the block
 
 
 def test_watchdog_ends_the_episode_and_holds_the_last_safe_targets(sim_calibration):
@@ -182,6 +185,7 @@ class _Broken(FakeDriver):
             r"'joint_vel' has non-finite values at .*\[23\]",
         ),
         ("block_force", 3.0, "'block_force' is set but spec.has_block_force=False"),
+        ("actuator_force", np.ones(20), "'actuator_force' is set but spec.has_actuator_force="),
     ],
 )
 def test_bad_readings_name_the_field(field, value, message):

@@ -3,7 +3,7 @@
 A driver is any object with a :class:`DriverSpec` ``spec`` attribute and four methods::
 
     reset() -> np.ndarray          # go to the start pose; return the commanded targets [20]
-    read() -> HandReading          # the latest joint positions, velocities, tactile, block force
+    read() -> HandReading          # latest joints, raw tactile, block force, actuator forces
     command(targets) -> None       # send position targets [20]; return at the next 20 Hz tick
     close() -> None                # release the hardware
 
@@ -22,9 +22,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from gentlerl.envs.assets import CHANNELS, TOUCH_SITES
+from gentlerl.envs.hand import N_ACTUATORS, N_JOINTS
 
-N_JOINTS = 24  # the Shadow Hand's joints, in the MJCF's order (WRJ1, WRJ0, FFJ3, ..., THJ0)
-N_ACTUATORS = 20
 N_SITES = len(TOUCH_SITES)
 
 
@@ -39,12 +38,16 @@ class DriverSpec:
             at most 3, the simulated touch channels they stand for: normal, then tangential).
         has_block_force: whether :class:`HandReading` carries ``block_force`` (a force/torque
             sensor under the block, as in the paper's real-robot setup).
+        has_actuator_force: whether :class:`HandReading` carries ``actuator_force`` (the
+            actuators' efforts, e.g. ``effort`` of a ROS ``JointState``); without it the env
+            writes zeros there, so effort-based rewards (``TorquePenalty``) need it.
     """
 
     target_low: np.ndarray
     target_high: np.ndarray
     tactile_channels: int = 1
     has_block_force: bool = False
+    has_actuator_force: bool = False
 
     def __post_init__(self) -> None:
         for name in ("target_low", "target_high"):
@@ -69,13 +72,16 @@ class DriverSpec:
 @dataclass
 class HandReading:
     """One :meth:`HandDriver.read`: ``joint_pos`` / ``joint_vel`` ``[24]`` (rad, rad/s),
+    in the MJCF's joint order (WRJ1, WRJ0, FFJ3, ..., THJ0),
     ``tactile`` ``[5, tactile_channels]`` raw sensor values per fingertip (ff, mf, rf, lf, th),
-    ``block_force`` (N) or ``None`` without a block sensor."""
+    ``block_force`` (N) or ``None`` without a block sensor, ``actuator_force`` ``[20]`` (N m) or
+    ``None`` where the driver does not report efforts."""
 
     joint_pos: np.ndarray
     joint_vel: np.ndarray
     tactile: np.ndarray
     block_force: float | None = None
+    actuator_force: np.ndarray | None = None
 
 
 @runtime_checkable
@@ -116,11 +122,20 @@ def check_reading(reading: HandReading, spec: DriverSpec) -> HandReading:
         block = float(_checked("block_force", block, ()))
     elif block is not None:
         raise ValueError("driver reading 'block_force' is set but spec.has_block_force=False")
+    effort = reading.actuator_force
+    if spec.has_actuator_force != (effort is not None):
+        raise ValueError(
+            f"driver reading 'actuator_force' is {'None' if effort is None else 'set'} but "
+            f"spec.has_actuator_force={spec.has_actuator_force}"
+        )
     return HandReading(
         joint_pos=_checked("joint_pos", reading.joint_pos, (N_JOINTS,)),
         joint_vel=_checked("joint_vel", reading.joint_vel, (N_JOINTS,)),
         tactile=_checked("tactile", reading.tactile, (N_SITES, spec.tactile_channels)),
         block_force=block,
+        actuator_force=None
+        if effort is None
+        else _checked("actuator_force", effort, (N_ACTUATORS,)),
     )
 
 

@@ -18,7 +18,14 @@ from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.envs.assets import CHANNELS, GRID
-from gentlerl.envs.driver import N_SITES, HandDriver, HandReading, check_reading, check_targets
+from gentlerl.envs.driver import (
+    N_ACTUATORS,
+    N_SITES,
+    HandDriver,
+    HandReading,
+    check_reading,
+    check_targets,
+)
 from gentlerl.envs.hand import FLAT_SIZE, OBS_SIZE, OBS_SLICES, Explore, Fragile, Touch
 from gentlerl.envs.watchdog import ForceWatchdog
 
@@ -43,7 +50,8 @@ class DriverHandEnv(EnvBase):
     and padded with zeros to the 3 simulated channels; the task judges success / broken exactly
     as in simulation. Without contact geometry, a fingertip is on the block when it senses
     > 0.05 N while the block sensor does (every sensing fingertip counts without a block sensor).
-    ``touch_grid`` spreads each fingertip's force evenly over its 4x4 taxels (a BioTac has no grid).
+    ``touch_grid`` spreads each fingertip's force evenly over its 4x4 taxels (a BioTac has no grid);
+    ``actuator_force`` is the driver's, or zeros if it reports none (``spec.has_actuator_force``).
 
     Writes the keys of :class:`HandEnv` plus raw ``tactile`` ``[5, R]``, ``block_force`` ``[1]``
     (0 without a block sensor) and ``watchdog`` ``[1]`` (a :class:`ForceWatchdog` trip ended the
@@ -123,6 +131,8 @@ class DriverHandEnv(EnvBase):
         buf[OBS_SLICES[keys.TOUCH][0]] = touch.reshape(-1)
         grid = np.repeat(touch.reshape(-1, 1) / (GRID[0] * GRID[1]), GRID[0] * GRID[1], axis=1)
         buf[OBS_SLICES[keys.TOUCH_GRID][0]] = grid.reshape(-1)
+        effort = reading.actuator_force
+        buf[OBS_SLICES[keys.ACTUATOR_FORCE][0]] = 0.0 if effort is None else effort
         t = torch.from_numpy(buf)
         out = {key: t[where].view(shape) for key, (where, shape) in OBS_SLICES.items()}
         out[keys.OBSERVATION] = t[:FLAT_SIZE].clone()
@@ -203,6 +213,7 @@ def _hand_env_specs() -> dict[str, Any]:
         keys.JOINT_VEL: Unbounded((24,)),
         keys.TOUCH: Unbounded((N_SITES, CHANNELS)),
         keys.TOUCH_GRID: Unbounded((N_SITES, CHANNELS, *GRID)),
+        keys.ACTUATOR_FORCE: Unbounded((N_ACTUATORS,)),
         keys.OBSERVATION: Unbounded((FLAT_SIZE,)),
         keys.SUCCESS: _flag(),
         keys.BROKEN: _flag(),

@@ -72,7 +72,8 @@ class SimulatedDriver:
 
     ``command`` sets the position targets and steps MuJoCo for one 50 ms control period; ``read``
     returns joints, raw BioTac-like tactile readings of the first ``tactile_channels`` touch
-    channels, and the normal force on the block (the paper's force/torque sensor). The block is
+    channels, the normal force on the block (the paper's force/torque sensor) and the actuator
+    forces. The block is
     placed as in the simulated task (``randomize_block``, ``block_range``).
 
     Args:
@@ -93,7 +94,13 @@ class SimulatedDriver:
         self._env = make_dm_env("explore", seed=seed, time_limit=10**9, **task_kwargs)
         self.physics = self._env.physics
         low, high = self.physics.model.actuator_ctrlrange.T
-        self.spec = DriverSpec(low, high, tactile_channels=tactile_channels, has_block_force=True)
+        self.spec = DriverSpec(
+            low,
+            high,
+            tactile_channels=tactile_channels,
+            has_block_force=True,
+            has_actuator_force=True,
+        )
         self.sensor = sensor or BioTacModel(seed=seed)
         self.n_sub_steps = int(round(CONTROL_TIMESTEP / self.physics.model.opt.timestep))
         self._block_geom = self.physics.model.geom("block").id
@@ -136,6 +143,7 @@ class SimulatedDriver:
             joint_vel=data.qvel[:N_JOINTS].copy(),
             tactile=self.sensor(touch),
             block_force=self.block_force(),
+            actuator_force=data.actuator_force.copy(),
         )
 
     def close(self) -> None:
