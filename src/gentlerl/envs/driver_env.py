@@ -191,7 +191,7 @@ class DriverHandEnv(EnvBase):
             reseed(seed)
 
     def close(self, *, raise_if_closed: bool = True) -> None:
-        if self.close_driver:
+        if getattr(self, "close_driver", False):  # False too if __init__ failed
             self.driver.close()
         super().close(raise_if_closed=raise_if_closed)
 
