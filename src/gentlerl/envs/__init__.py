@@ -6,6 +6,8 @@ configure_gl()  # before dm_control is imported
 
 from gentlerl.envs.driver import DriverSpec, HandDriver, HandReading  # noqa: E402
 from gentlerl.envs.driver_env import DriverHandEnv  # noqa: E402
+from gentlerl.envs.batched import BatchedHandEnv  # noqa: E402
+from gentlerl.envs.environment import HandEnvironment  # noqa: E402
 from gentlerl.envs.factory import SUITE, TASKS, make_dm_env, make_env  # noqa: E402
 from gentlerl.envs.hand import CALIBRATIONS, Explore, Fragile, HandPhysics, Touch  # noqa: E402
 from gentlerl.envs.sim_driver import BioTacModel, SimulatedDriver  # noqa: E402
@@ -22,10 +24,12 @@ __all__ = [
     "HandDriver",
     "HandReading",
     "SimulatedDriver",
+    "BatchedHandEnv",
     "TASKS",
     "Explore",
     "Fragile",
     "HandEnv",
+    "HandEnvironment",
     "HandPhysics",
     "Touch",
     "make_dm_env",

@@ -6,10 +6,11 @@ from typing import Any
 
 import numpy as np
 import torch
-from dm_control.rl import control
 from dm_control.utils import containers
 
 from gentlerl.envs.assets import scene_xml
+from gentlerl.envs.batched import BatchedHandEnv
+from gentlerl.envs.environment import HandEnvironment
 from gentlerl.envs.hand import (
     CALIBRATIONS,
     CONTROL_TIMESTEP,
@@ -30,7 +31,7 @@ def _load(
     random: Any,
     calibration: str = DEFAULT_CALIBRATION,
     **task_kwargs: Any,
-) -> control.Environment:
+) -> HandEnvironment:
     if calibration not in CALIBRATIONS:
         raise ValueError(
             f"unknown calibration {calibration!r}; expected one of {list(CALIBRATIONS)}"
@@ -46,25 +47,25 @@ def _load(
     n_sub_steps = int(round(CONTROL_TIMESTEP / physics.model.opt.timestep))
     # dm_control truncates once physics time >= time_limit; the epsilon makes that exactly
     # ``time_limit`` control steps despite float rounding.
-    return control.Environment(
+    return HandEnvironment(
         physics, task, time_limit=time_limit * CONTROL_TIMESTEP - 1e-9, n_sub_steps=n_sub_steps
     )
 
 
 @SUITE.add()
-def explore(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+def explore(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
     """No task reward, fixed episode length (the paper's exploration setting)."""
     return _load(Explore, time_limit, random, **task_kwargs)
 
 
 @SUITE.add()
-def touch(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+def touch(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
     """+1 and termination when a fingerpad presses the block with > 5 N."""
     return _load(Touch, time_limit, random, **task_kwargs)
 
 
 @SUITE.add()
-def fragile(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> control.Environment:
+def fragile(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
     """+5 for a > 5 N press; an impact > 3 N breaks the block (-0.5, termination)."""
     return _load(Fragile, time_limit, random, **task_kwargs)
 
@@ -74,7 +75,7 @@ TASKS: tuple[str, ...] = tuple(SUITE)
 
 def make_dm_env(
     task: str = "touch", *, seed: int | None = None, **task_kwargs: Any
-) -> control.Environment:
+) -> HandEnvironment:
     """The plain dm_control environment of ``task`` (so dm_control's viewer and tools work).
 
     Args:
@@ -98,16 +99,33 @@ def make_env(
     seed: int | None = None,
     device: str | torch.device = "cpu",
     from_pixels: bool = False,
+    num_envs: int | None = None,
+    num_threads: int | None = None,
     **task_kwargs: Any,
-) -> HandEnv:
+) -> HandEnv | BatchedHandEnv:
     """The TorchRL env of ``task`` (passes ``torchrl.envs.utils.check_env_specs``).
 
     Same arguments as :func:`make_dm_env`; ``from_pixels`` adds an 84x84 RGB ``pixels``
     observation (needs an OpenGL backend, see :mod:`gentlerl.envs.rendering`).
+
+    ``num_envs=None`` (default): one hand, a :class:`HandEnv` with batch size ``[]``. An integer:
+    a :class:`BatchedHandEnv` with batch size ``[num_envs]`` stepping that many hands in this
+    process, their physics on ``num_threads`` threads (default: ``min(num_envs, cores)``); hand
+    ``i`` is seeded as TorchRL's ``ParallelEnv`` seeds worker ``i`` (hand 0 gets ``seed``).
     """
-    env = HandEnv(
-        make_dm_env(task, seed=seed, **task_kwargs), device=device, from_pixels=from_pixels
-    )
+    if num_envs is None:
+        if num_threads is not None:
+            raise ValueError(f"num_threads={num_threads!r} needs num_envs (a batched env)")
+        env = HandEnv(
+            make_dm_env(task, seed=seed, **task_kwargs), device=device, from_pixels=from_pixels
+        )
+    else:
+        if not (isinstance(num_envs, int | np.integer) and num_envs >= 1):
+            raise ValueError(f"num_envs must be an integer >= 1 (hands), got {num_envs!r}")
+        dm_envs = [make_dm_env(task, seed=seed, **task_kwargs) for _ in range(num_envs)]
+        env = BatchedHandEnv(
+            dm_envs, num_threads=num_threads, device=device, from_pixels=from_pixels
+        )
     if seed is not None:
         env.set_seed(seed)
     return env

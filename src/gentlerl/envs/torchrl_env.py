@@ -2,29 +2,87 @@
 
 A thin, allocation-light wrapper (``torch.from_numpy`` views, pre-built specs) rather than
 ``DMControlWrapper``, so that it can also expose ``success`` / ``broken`` and the flat
-``observation`` the learner reads.
+``observation`` the learner reads. :func:`hand_specs` and :func:`hand_tensordict` are shared with
+the batched env (:mod:`gentlerl.envs.batched`), so one hand and N hands write the same data.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import torch
-from dm_control.rl import control
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.envs.assets import CHANNELS, GRID, TOUCH_SITES
-from gentlerl.envs.hand import FLAT_SIZE, N_ACTUATORS, OBS_SLICES
+from gentlerl.envs.environment import HandEnvironment
+from gentlerl.envs.hand import FLAT_SIZE, N_ACTUATORS, N_JOINTS, OBS_SLICES
 from gentlerl.envs.rendering import render
 
 N_SITES = len(TOUCH_SITES)
-_SCALAR = torch.Size([])
+#: The bool ``[1]`` entries of every step, in the order of the flag array of :func:`hand_tensordict`.
+FLAG_KEYS = (keys.SUCCESS, keys.BROKEN, keys.TERMINATED, keys.TRUNCATED, keys.DONE)
+_NOT_DONE = (False, False, False)
 
 
 def _flag() -> Categorical:
     return Categorical(2, (1,), dtype=torch.bool)
+
+
+def hand_specs(
+    device: str | torch.device, from_pixels: bool, pixel_size: int
+) -> dict[str, Composite | Bounded]:
+    """Unbatched ``observation`` / ``action`` / ``reward`` / ``done`` specs of one hand."""
+    obs = {
+        keys.JOINT_POS: Unbounded((N_JOINTS,), device=device),
+        keys.JOINT_VEL: Unbounded((N_JOINTS,), device=device),
+        keys.TOUCH: Unbounded((N_SITES, CHANNELS), device=device),
+        keys.TOUCH_GRID: Unbounded((N_SITES, CHANNELS, *GRID), device=device),
+        keys.ACTUATOR_FORCE: Unbounded((N_ACTUATORS,), device=device),
+        keys.OBSERVATION: Unbounded((FLAT_SIZE,), device=device),
+        keys.SUCCESS: _flag(),
+        keys.BROKEN: _flag(),
+    }
+    if from_pixels:
+        obs[keys.PIXELS] = Bounded(0, 255, (pixel_size, pixel_size, 3), dtype=torch.uint8)
+    return {
+        "observation": Composite(obs),
+        "action": Bounded(-1.0, 1.0, (20,), device=device),
+        "reward": Unbounded((1,), device=device),
+        "done": Composite(done=_flag(), terminated=_flag(), truncated=_flag()),
+    }
+
+
+def step_flags(env: HandEnvironment, discount: float | None) -> tuple[bool, ...]:
+    """``FLAG_KEYS`` after a step that returned ``discount`` (None: running, 0: terminated)."""
+    task = env.task
+    last = discount is not None
+    terminated = last and discount == 0.0
+    return task.success, task.broken, terminated, last and not terminated, last
+
+
+def hand_tensordict(
+    buffer: np.ndarray, flags: np.ndarray, reward: np.ndarray | None, extra: dict[str, Any]
+) -> TensorDictBase:
+    """One step of ``B`` hands (``B`` = ``buffer.shape[:-1]``, ``()`` for one hand).
+
+    ``buffer``: fresh float32 ``[*B, OBS_SIZE]`` observation buffers (laid out as ``OBS_SLICES``;
+    the tensors are views of it); ``flags``: bool ``[*B, 5]`` in :data:`FLAG_KEYS` order;
+    ``reward``: float32 ``[*B, 1]`` (None at reset); ``extra``: further entries (``pixels``).
+    """
+    batch = buffer.shape[:-1]
+    buf = torch.from_numpy(buffer)
+    out = {key: buf[..., where].view(*batch, *shape) for key, (where, shape) in OBS_SLICES.items()}
+    out[keys.OBSERVATION] = buf[..., :FLAT_SIZE].clone()  # not aliased with joint_pos & co.
+    values = torch.from_numpy(flags)
+    out.update((key, values[..., i : i + 1]) for i, key in enumerate(FLAG_KEYS))
+    if reward is not None:
+        out[keys.REWARD] = torch.from_numpy(reward)
+    out.update(extra)
+    return TensorDict._new_unsafe(out, batch_size=torch.Size(batch))
 
 
 class HandEnv(EnvBase):
@@ -40,7 +98,7 @@ class HandEnv(EnvBase):
 
     def __init__(
         self,
-        dm_env: control.Environment,
+        dm_env: HandEnvironment,
         *,
         device: str | torch.device = "cpu",
         from_pixels: bool = False,
@@ -50,36 +108,21 @@ class HandEnv(EnvBase):
         self.dm_env = dm_env
         self.from_pixels = from_pixels
         self.pixel_size = pixel_size
-        obs = {
-            keys.JOINT_POS: Unbounded((24,), device=device),
-            keys.JOINT_VEL: Unbounded((24,), device=device),
-            keys.TOUCH: Unbounded((N_SITES, CHANNELS), device=device),
-            keys.TOUCH_GRID: Unbounded((N_SITES, CHANNELS, *GRID), device=device),
-            keys.ACTUATOR_FORCE: Unbounded((N_ACTUATORS,), device=device),
-            keys.OBSERVATION: Unbounded((48 + N_SITES * CHANNELS,), device=device),
-            keys.SUCCESS: _flag(),
-            keys.BROKEN: _flag(),
-        }
-        if from_pixels:
-            obs[keys.PIXELS] = Bounded(0, 255, (pixel_size, pixel_size, 3), dtype=torch.uint8)
-        self.observation_spec = Composite(obs)
-        self.action_spec = Bounded(-1.0, 1.0, (20,), device=device)
-        self.reward_spec = Unbounded((1,), device=device)
-        self.full_done_spec = Composite(done=_flag(), terminated=_flag(), truncated=_flag())
+        specs = hand_specs(device, from_pixels, pixel_size)
+        self.observation_spec = specs["observation"]
+        self.action_spec = specs["action"]
+        self.reward_spec = specs["reward"]
+        self.full_done_spec = specs["done"]
         self.is_closed = False  # EnvBase starts "closed"; open, ``__del__`` and collectors close it
 
-    def _output(self, flags: dict[str, bool]) -> TensorDictBase:
-        """This step's tensordict: the task's float32 buffer as views, plus bool ``flags``."""
-        task = self.dm_env.task
-        buf = torch.from_numpy(task.buffer)  # float32, fresh each step: the views below own it
-        out = {key: buf[where].view(shape) for key, (where, shape) in OBS_SLICES.items()}
-        out[keys.OBSERVATION] = buf[:FLAT_SIZE].clone()  # not aliased with joint_pos & co.
-        flags = {keys.SUCCESS: task.success, keys.BROKEN: task.broken, **flags}
-        values = torch.tensor(list(flags.values()))  # one allocation for all [1] flags
-        out.update((key, values[i : i + 1]) for i, key in enumerate(flags))
-        if self.from_pixels:
-            out[keys.PIXELS] = torch.from_numpy(self.render())
-        td = TensorDict._new_unsafe(out, batch_size=_SCALAR)
+    def _output(self, flags: tuple[bool, ...], reward: float | None) -> TensorDictBase:
+        extra = {keys.PIXELS: torch.from_numpy(self.render())} if self.from_pixels else {}
+        td = hand_tensordict(
+            self.dm_env.task.buffer,
+            np.array(flags),
+            None if reward is None else np.array([reward], dtype=np.float32),
+            extra,
+        )
         return td if self.device.type == "cpu" else td.to(self.device)
 
     def render(self, height: int | None = None, width: int | None = None) -> np.ndarray:
@@ -96,21 +139,19 @@ class HandEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         self.dm_env.reset()
-        return self._output({})
+        task = self.dm_env.task
+        return self._output((task.success, task.broken, *_NOT_DONE), None)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        dm_env = self.dm_env
+        if dm_env.needs_reset:  # stepped past the end without reset: dm_control starts anew
+            dm_env.reset()
+            return self._output((False,) * len(FLAG_KEYS), 0.0)
         # Shape and finiteness are checked by the task (ValueError naming the value).
-        timestep = self.dm_env.step(tensordict.get(keys.ACTION).detach().cpu().numpy())
-        last = timestep.last()
-        terminated = last and timestep.discount == 0.0
-        done = {
-            keys.TERMINATED: terminated,
-            keys.TRUNCATED: last and not terminated,
-            keys.DONE: last,
-        }
-        td = self._output(done)
-        td.set(keys.REWARD, torch.tensor([timestep.reward or 0.0], dtype=torch.float32))
-        return td
+        dm_env.begin_step(tensordict.get(keys.ACTION).detach().cpu().numpy())
+        dm_env.step_physics()
+        reward, discount = dm_env.end_step()
+        return self._output(step_flags(dm_env, discount), reward)
 
     def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
         """``_step`` already writes every done key and a ``[1]`` reward: skip the generic fix-ups."""
