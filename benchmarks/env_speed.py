@@ -58,7 +58,7 @@ def raw_physics() -> Callable[[int], None]:
     """The same 25 sub-steps and delta-position control, with nothing else around them."""
     env = make_dm_env("explore", seed=0, time_limit=10**9)
     env.reset()
-    physics, n_sub = env.physics, env._n_sub_steps
+    physics, n_sub = env.physics, env.n_sub_steps
     low, high = physics.model.actuator_ctrlrange.T
     step = env.task.action_scale * (high - low)
     rng = np.random.default_rng(0)
@@ -105,6 +105,11 @@ def torchrl_rollout() -> Callable[[int], None]:
     return lambda n: env.rollout(n, break_when_any_done=False)
 
 
+def batched_rollout(num_envs: int, num_threads: int) -> Callable[[int], None]:
+    env = make_env("explore", seed=0, time_limit=10**9, num_envs=num_envs, num_threads=num_threads)
+    return lambda n: env.rollout(n, break_when_any_done=False)
+
+
 def _make_explore():
     return make_env("explore", seed=0, time_limit=10**9)
 
@@ -124,6 +129,9 @@ def main() -> None:
         "TorchRL HandEnv.step": (torchrl_step(with_step_mdp=False), 1),
         "TorchRL HandEnv.step + step_mdp": (torchrl_step(with_step_mdp=True), 1),
         "TorchRL HandEnv.rollout": (torchrl_rollout(), 1),
+        "BatchedHandEnv.rollout, 4 hands, 1 thread (total)": (batched_rollout(4, 1), 4),
+        "BatchedHandEnv.rollout, 4 hands, 2 threads (total)": (batched_rollout(4, 2), 4),
+        "BatchedHandEnv.rollout, 8 hands, 2 threads (total)": (batched_rollout(8, 2), 8),
         f"ParallelEnv, {workers} workers (total)": (
             lambda n: parallel.rollout(n, break_when_any_done=False),
             workers,

@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from torchrl.envs import RenameTransform, TransformedEnv
 
 from gentlerl.training import SCALES, TrainConfig, make_config
-from gentlerl.training.builders import check_env_keys, make_learner
+from gentlerl.training.builders import check_env_keys, collection_env_factory, make_learner
 from gentlerl.transforms import VARIANTS, make_reward_transforms
 from tests.toy_env import ToyHandEnv
 
@@ -63,6 +63,9 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"lr_actor": 0.0}, "lr_actor=0.0 must be > 0"),
         ({"actor_hidden": ()}, "actor_hidden=() must be a non-empty list"),
         ({"bach_size": 3}, "unknown config field(s) ['bach_size']"),
+        ({"num_envs": 0}, "num_envs=0 must be >= 1"),
+        ({"num_envs": 3}, "frames_per_batch=200 must be a multiple of num_envs=3"),
+        ({"env_threads": 0}, "env_threads=0 must be >= 1"),
     ],
 )
 def test_bad_values_raise_one_clear_error(overrides, message):
@@ -99,6 +102,12 @@ def _compose(overrides):
     with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
         cfg = compose("config", overrides=overrides)
     return make_config(**OmegaConf.to_container(cfg, resolve=True))
+
+
+def test_num_envs_needs_a_batching_env_factory():
+    assert collection_env_factory(make_config(), ToyHandEnv) is ToyHandEnv
+    with pytest.raises(ValueError, match="num_envs=4 needs an env factory that takes num_envs"):
+        collection_env_factory(make_config(num_envs=4), ToyHandEnv)
 
 
 def test_recipe_default_composes_to_the_cpu_default():

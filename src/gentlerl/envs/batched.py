@@ -98,8 +98,12 @@ class BatchedHandEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict.get(keys.ACTION).detach().cpu().numpy()
+        # "_step" (TorchRL's partial steps, e.g. rollout(break_when_all_done=True)): hands left
+        # out keep their state; TorchRL ignores their rows of the output.
+        partial = tensordict.get("_step", None)
+        active = [True] * self.num_envs if partial is None else partial.reshape(-1).tolist()
         # A hand stepped past its episode's end without a reset starts anew (as dm_control does).
-        stepping = [not env.needs_reset for env in self.dm_envs]
+        stepping = [a and not env.needs_reset for a, env in zip(active, self.dm_envs, strict=True)]
         for env, action, go in zip(self.dm_envs, actions, stepping, strict=True):
             if go:
                 env.begin_step(action)  # raises on a bad action before any physics runs
@@ -109,11 +113,11 @@ class BatchedHandEnv(EnvBase):
             future.result()
         flags = np.zeros((self.num_envs, len(FLAG_KEYS)), dtype=bool)
         reward = np.zeros((self.num_envs, 1), dtype=np.float32)
-        for i, (env, go) in enumerate(zip(self.dm_envs, stepping, strict=True)):
-            if go:
+        for i, env in enumerate(self.dm_envs):
+            if stepping[i]:
                 reward[i, 0], discount = env.end_step()
                 flags[i] = step_flags(env, discount)
-            else:
+            elif active[i]:
                 env.reset()
         return self._output(flags, reward)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -43,6 +44,27 @@ def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
     env = env_factory()
     env.set_seed(seed)
     return env
+
+
+def takes_num_envs(env_factory: EnvFactory) -> bool:
+    """Whether ``env_factory`` builds batched envs (it takes ``num_envs``, as ``make_env``)."""
+    try:
+        params = inspect.signature(env_factory).parameters.values()
+    except (TypeError, ValueError):  # builtins / C callables: no signature to read
+        return False
+    return any(p.name == "num_envs" for p in params)
+
+
+def collection_env_factory(cfg: TrainConfig, env_factory: EnvFactory) -> EnvFactory:
+    """``env_factory`` for the collector: ``cfg.num_envs`` hands per env when above 1."""
+    if cfg.num_envs == 1:
+        return env_factory
+    if not takes_num_envs(env_factory):
+        raise ValueError(
+            f"num_envs={cfg.num_envs} needs an env factory that takes num_envs (as "
+            "gentlerl.envs.make_env does); this one does not"
+        )
+    return partial(env_factory, num_envs=cfg.num_envs, num_threads=cfg.env_threads)
 
 
 #: What the loop reads from every env step besides the variant's reward components.
@@ -177,6 +199,7 @@ def make_collector(
         # The policy is stateless: the env needs no InitTracker / primer (and no FutureWarning).
         auto_register_policy_transforms=False,
     )
+    env_factory = collection_env_factory(cfg, env_factory)
     if cfg.collector == "single":
         return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
     factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]
@@ -197,7 +220,12 @@ def make_exploration(learner: Learner, cfg: TrainConfig, action_dim: int) -> tor
     return make_exploration_policy(learner.actor, cfg.sigma, action_dim=action_dim)
 
 
-def make_eval_env(env_factory: EnvFactory, seed: int) -> EnvBase:
-    env = TransformedEnv(env_factory(), ImpactPenalty())
+def make_eval_env(env_factory: EnvFactory, seed: int, episodes: int = 1) -> EnvBase:
+    """The evaluation env (writes ``impact``): ``episodes`` hands stepped together where the
+    factory builds batched envs (all episodes of an evaluation in one rollout), else one."""
+    batched = episodes > 1 and takes_num_envs(env_factory)
+    env = TransformedEnv(
+        env_factory(num_envs=episodes) if batched else env_factory(), ImpactPenalty()
+    )
     env.set_seed(seed)
     return env

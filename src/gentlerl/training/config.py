@@ -33,6 +33,11 @@ class TrainConfig:
     init_random_frames: int = 10_000  # ~50 random episodes: ~1 % of them succeed
     collector: str = "single"
     num_workers: int = 2
+    # Hands stepped together in each collector env (gentlerl.envs.BatchedHandEnv; a batch is then
+    # [num_envs, frames_per_batch / num_envs]), their physics on env_threads threads (None: one per
+    # hand, at most one per core). 1: one plain HandEnv.
+    num_envs: int = 1
+    env_threads: int | None = None
     sigma: float = 0.3
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     # Learner.
@@ -178,7 +183,7 @@ def validate(cfg: TrainConfig) -> None:
     if cfg.wandb_mode not in WANDB_MODES:
         problems.append(f"wandb_mode={cfg.wandb_mode!r} is not one of {list(WANDB_MODES)}")
     positive = (
-        "total_frames frames_per_batch num_workers batch_size buffer_size num_atoms n_steps "
+        "total_frames frames_per_batch num_workers num_envs batch_size buffer_size num_atoms n_steps "
         "target_update_period dynamics_target_period penalty_target_period ensemble_size "
         "model_hidden model_batch_size model_buffer_size eval_every_frames log_every_updates "
         "checkpoint_every_frames num_threads"
@@ -193,6 +198,12 @@ def validate(cfg: TrainConfig) -> None:
     for name in non_negative.split():
         if not getattr(cfg, name) >= 0:
             problems.append(f"{name}={getattr(cfg, name)} must be >= 0")
+    if cfg.env_threads is not None and cfg.env_threads < 1:
+        problems.append(f"env_threads={cfg.env_threads} must be >= 1 (or None: one per hand)")
+    if cfg.num_envs >= 1 and cfg.frames_per_batch % cfg.num_envs:
+        problems.append(
+            f"frames_per_batch={cfg.frames_per_batch} must be a multiple of num_envs={cfg.num_envs}"
+        )
     for name in ("lr_actor", "lr_critic", "lr_model"):
         if not getattr(cfg, name) > 0:
             problems.append(f"{name}={getattr(cfg, name)} must be > 0")

@@ -222,7 +222,7 @@ class Trainer:
         logger = RunLogger(self.run_dir, _plain(cfg.to_dict()), cfg.wandb_mode, cfg.wandb_project)
         logger.truncate_after(self.counters["frames"])
         tracker = EpisodeTracker(cfg.reward_keys)
-        eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000)
+        eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, cfg.eval_episodes)
         frames_left = cfg.total_frames - self.counters["frames"]
         if frames_left > 0:
             self._collect(frames_left, logger, tracker, eval_env)
