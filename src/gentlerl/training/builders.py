@@ -17,6 +17,7 @@ from gentlerl.data import make_beta_scheduler, make_model_buffer, make_replay_bu
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.training.config import TrainConfig
+from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.transforms import ImpactPenalty, RewardStack, make_reward_transforms
 
 EnvFactory = Callable[..., EnvBase]
@@ -180,8 +181,10 @@ def make_collector(
     frames_left: int,
     random_left: int,
     seed: int,
-) -> Collector | MultiSyncCollector:
-    """TorchRL ``Collector`` (one process) or ``MultiSyncCollector`` (``num_workers`` processes).
+) -> Collector | MultiSyncCollector | PrefetchCollector:
+    """TorchRL ``Collector`` (one process) or ``MultiSyncCollector`` (``num_workers`` processes);
+    with ``cfg.overlap`` the single collector runs one batch ahead on a thread
+    (:class:`~gentlerl.training.prefetch.PrefetchCollector`).
 
     Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset, so the
     first episode (its block position) is reproducible too; ``collector.set_seed`` comes too late
@@ -200,6 +203,9 @@ def make_collector(
         auto_register_policy_transforms=False,
     )
     env_factory = collection_env_factory(cfg, env_factory)
+    if cfg.collector == "single" and cfg.overlap:
+        seeded = partial(_seeded_env, env_factory, seed)
+        return PrefetchCollector(lambda p: Collector(seeded, p, **common), policy)
     if cfg.collector == "single":
         return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
     factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]

@@ -38,6 +38,9 @@ class TrainConfig:
     # hand, at most one per core). 1: one plain HandEnv.
     num_envs: int = 1
     env_threads: int | None = None
+    # Collect the next batch on a thread while the learner trains on this one (collector=single;
+    # the collection policy lags one batch behind the learner, deterministically).
+    overlap: bool = False
     sigma: float = 0.3
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     # Learner.
@@ -198,6 +201,8 @@ def validate(cfg: TrainConfig) -> None:
     for name in non_negative.split():
         if not getattr(cfg, name) >= 0:
             problems.append(f"{name}={getattr(cfg, name)} must be >= 0")
+    if cfg.overlap and cfg.collector != "single":
+        problems.append(f"overlap=true needs collector='single', got collector={cfg.collector!r}")
     if cfg.env_threads is not None and cfg.env_threads < 1:
         problems.append(f"env_threads={cfg.env_threads} must be >= 1 (or None: one per hand)")
     if cfg.num_envs >= 1 and cfg.frames_per_batch % cfg.num_envs:
