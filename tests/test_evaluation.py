@@ -11,7 +11,7 @@ from gentlerl.transforms import ImpactPenalty
 
 
 class _Press(torch.nn.Module):
-    """Flex the index knuckle: the block is pressed with > 5 N in ~38 steps."""
+    """Flex the index knuckle: the block is pressed with > 5 N in ~38 steps (calibration "easy")."""
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         action = torch.zeros(*obs.shape[:-1], 20)
@@ -20,7 +20,9 @@ class _Press(torch.nn.Module):
 
 
 def _env(seed: int, num_envs: int | None = None):
-    env = TransformedEnv(make_env("fragile", seed=seed, num_envs=num_envs), ImpactPenalty())
+    env = TransformedEnv(
+        make_env("fragile", seed=seed, num_envs=num_envs, calibration="easy"), ImpactPenalty()
+    )
     env.set_seed(seed)
     return env
 
