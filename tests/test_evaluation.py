@@ -5,7 +5,6 @@ from tensordict.nn import TensorDictModule
 from torchrl._utils import seed_generator
 from torchrl.envs import TransformedEnv
 
-from gentlerl.envs import make_env
 from gentlerl.training.evaluation import evaluate
 from gentlerl.transforms import ImpactPenalty
 
@@ -19,7 +18,7 @@ class _Press(torch.nn.Module):
         return action
 
 
-def _env(seed: int, num_envs: int | None = None):
+def _env(make_env, seed: int, num_envs: int | None = None):
     env = TransformedEnv(
         make_env("fragile", seed=seed, num_envs=num_envs, calibration="easy"), ImpactPenalty()
     )
@@ -27,11 +26,11 @@ def _env(seed: int, num_envs: int | None = None):
     return env
 
 
-def test_batched_evaluation_equals_one_episode_per_single_env():
+def test_batched_evaluation_equals_one_episode_per_single_env(hand_env):
     actor = TensorDictModule(_Press(), ["observation"], ["action"])
-    summary, episodes = evaluate(_env(3, num_envs=3), actor, episodes=3, max_steps=1000)
+    summary, episodes = evaluate(_env(hand_env, 3, num_envs=3), actor, episodes=3, max_steps=1000)
     seeds = [3, seed_generator(3), seed_generator(seed_generator(3))]
-    expected = [evaluate(_env(s), actor, episodes=1, max_steps=1000)[1][0] for s in seeds]
+    expected = [evaluate(_env(hand_env, s), actor, episodes=1, max_steps=1000)[1][0] for s in seeds]
     assert episodes == expected
     # fragile: a press succeeds with +5, once per episode (the repeated last rows are not summed).
     assert summary["success_rate"] == 1.0 and summary["return"] == 5.0

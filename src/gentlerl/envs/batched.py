@@ -85,6 +85,7 @@ class BatchedHandEnv(EnvBase):
         # Contiguous shares of the hands, one per thread; the calling thread takes the first.
         self._shares = [s.tolist() for s in np.array_split(np.arange(n), self.num_threads)]
         self._pool = ThreadPoolExecutor(self.num_threads - 1) if self.num_threads > 1 else None
+        self.is_closed = False  # EnvBase starts "closed"; open, ``__del__`` and collectors close it
 
     @property
     def num_envs(self) -> int:
@@ -172,7 +173,11 @@ class BatchedHandEnv(EnvBase):
         return seed if seed is None or static_seed else self._seeds(seed)[-1]
 
     def close(self, *, raise_if_closed: bool = True) -> None:
+        """Stop the threads; free every hand's physics and GL context now."""
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
+        if not self.is_closed:
+            for env in self.dm_envs:
+                env.physics.free()
         super().close(raise_if_closed=raise_if_closed)
