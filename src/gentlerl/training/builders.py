@@ -205,7 +205,7 @@ def make_collector(
     env_factory = collection_env_factory(cfg, env_factory)
     if cfg.collector == "single" and cfg.overlap:
         seeded = partial(_seeded_env, env_factory, seed)
-        return PrefetchCollector(lambda p: Collector(seeded, p, **common), policy)
+        return PrefetchCollector(lambda p: Collector(seeded, p, **common), policy, seed)
     if cfg.collector == "single":
         return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
     factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]

@@ -68,12 +68,17 @@ class PrefetchCollector:
         make_collector: builds the ``Collector`` from the policy it is given.
         policy: ``(actor, AdditiveGaussianModule)``, the actor being the learner's (trained in
             place): the collector gets a copy (:func:`snapshot_policy`).
+        seed: of the exploration noise (:meth:`set_seed` re-seeds it with the envs).
     """
 
     def __init__(
-        self, make_collector: Callable[[TensorDictModule], Collector], policy: TensorDictSequential
+        self,
+        make_collector: Callable[[TensorDictModule], Collector],
+        policy: TensorDictSequential,
+        seed: int = 0,
     ) -> None:
         self.policy = snapshot_policy(policy)
+        self.policy[1].generator.manual_seed(seed)
         self._source = TensorDict.from_module(policy[0])
         self._copy = TensorDict.from_module(self.policy[0]).data
         self.collector = make_collector(self.policy)
