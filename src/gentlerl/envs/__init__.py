@@ -4,9 +4,9 @@ from gentlerl.envs.rendering import configure_gl
 
 configure_gl()  # before dm_control is imported
 
+from gentlerl.envs.batched import BatchedHandEnv  # noqa: E402
 from gentlerl.envs.driver import DriverSpec, HandDriver, HandReading  # noqa: E402
 from gentlerl.envs.driver_env import DriverHandEnv  # noqa: E402
-from gentlerl.envs.batched import BatchedHandEnv  # noqa: E402
 from gentlerl.envs.environment import HandEnvironment  # noqa: E402
 from gentlerl.envs.factory import SUITE, TASKS, make_dm_env, make_env  # noqa: E402
 from gentlerl.envs.hand import CALIBRATIONS, Explore, Fragile, HandPhysics, Touch  # noqa: E402
