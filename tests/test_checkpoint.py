@@ -13,7 +13,12 @@ from tensordict import TensorDict
 
 from gentlerl.data import make_replay_buffer
 from gentlerl.training import Trainer, load_checkpoint, load_policy, save_checkpoint
-from gentlerl.training.checkpoint import load_replay_buffer_state, replay_buffer_state
+from gentlerl.training.checkpoint import (
+    CheckpointError,
+    load_replay_buffer_state,
+    remove_stale_temp_files,
+    replay_buffer_state,
+)
 from tests.test_training_loop import tiny_config, toy_env
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +37,69 @@ def test_save_is_atomic(tmp_path):
 def test_missing_checkpoint(tmp_path):
     with pytest.raises(FileNotFoundError, match="no checkpoint at"):
         load_checkpoint(tmp_path / "nope.pt")
+
+
+class _Exploit:
+    """Unpickling this object would run code: it creates the file ``marker``."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (Path.touch, (Path(self.marker),))
+
+
+def test_loading_runs_no_code_from_the_file(tmp_path):
+    marker = tmp_path / "pwned"
+    for name in ("checkpoint.pt", "best_policy.pt"):
+        torch.save({"config": {}, "actor": _Exploit(marker)}, tmp_path / name)
+        with pytest.raises(CheckpointError, match=name):
+            load_checkpoint(tmp_path / name)
+        with pytest.raises(CheckpointError, match=name):
+            load_policy(tmp_path / name)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "not_a_dict", "not_a_policy"])
+def test_a_damaged_file_is_one_line_naming_it_and_what_to_do(tmp_path, damage):
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, {"w": torch.randn(1000), "td": TensorDict({"a": torch.ones(3)}, [3])})
+    data = path.read_bytes()
+    contents = {"truncated": data[: len(data) // 2], "empty": b"", "garbage": b"\x80\x02junk" * 9}
+    if damage in contents:
+        path.write_bytes(contents[damage])
+    elif damage == "not_a_dict":
+        torch.save([1, 2], path)
+    with pytest.raises(CheckpointError) as err:
+        load_checkpoint(path) if damage != "not_a_policy" else load_policy(path)
+    message = str(err.value)
+    assert str(path) in message and "\n" not in message
+    if damage in contents:
+        assert "restore a good copy, or delete it" in message
+
+
+def test_tensordicts_trees_and_numpy_state_survive_the_plain_format(tmp_path):
+    import numpy as np
+
+    rb = make_replay_buffer(100, 4, n_steps=1)
+    rb.extend(_transitions(0, 10))
+    state = {"rb": replay_buffer_state(rb), "np": np.random.RandomState(3).get_state()}
+    save_checkpoint(tmp_path / "c.pt", state)
+    back = load_checkpoint(tmp_path / "c.pt")
+    assert (back["rb"]["_storage"]["data"] == rb[:]).all()
+    assert torch.equal(back["rb"]["_sampler"]["_sum_tree"].values, rb.sampler._sum_tree.values)
+    restored = np.random.RandomState()
+    restored.set_state(back["np"])
+    assert restored.rand() == np.random.RandomState(3).rand()
+
+
+def test_stale_temp_files_of_killed_saves_are_removed(tmp_path):
+    stale = [tmp_path / ".checkpoint.pt.k2j3.tmp", tmp_path / ".best_policy.pt.x9.tmp"]
+    keep = [tmp_path / "checkpoint.pt", tmp_path / "notes.tmp"]
+    for path in stale + keep:
+        path.write_bytes(b"x")
+    assert remove_stale_temp_files(tmp_path) == sorted(stale)
+    assert sorted(tmp_path.iterdir()) == sorted(keep)
 
 
 def _transitions(start: int, n: int) -> TensorDict:
@@ -63,7 +131,9 @@ def test_replay_buffer_round_trip_saves_only_filled_rows(tmp_path):
 
 def test_trainer_state_round_trip(tmp_path):
     run = Trainer(tiny_config(tmp_path, total_frames=500), toy_env)
+    (tmp_path / ".checkpoint.pt.killed.tmp").write_bytes(b"half a checkpoint")
     run.run()
+    assert not list(tmp_path.glob(".*.tmp"))  # a save killed earlier left it; run() removes it
     resumed = Trainer(tiny_config(tmp_path, total_frames=500, resume=True), toy_env)
     resumed.load_state_dict(load_checkpoint(tmp_path / "checkpoint.pt"))
     assert resumed.counters == run.counters == {"frames": 500, "updates": 150, "update_credit": 0}

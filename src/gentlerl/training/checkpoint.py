@@ -1,4 +1,11 @@
-"""Atomic checkpoints: nothing half-written on disk, even when the process is killed mid-save."""
+"""Checkpoints: atomic (nothing half-written on disk, even when the process is killed mid-save)
+and loaded without running code from the file.
+
+Files hold only tensors and plain Python containers, so :func:`load_checkpoint` reads them with
+``torch.load(weights_only=True)``: a shared ``best_policy.pt`` cannot execute anything. The few
+objects a run's state holds besides those (tensordicts, the prioritised sampler's trees, numpy's
+RNG state) are written as tagged plain dicts and rebuilt on load.
+"""
 
 from __future__ import annotations
 
@@ -7,26 +14,80 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.data import ReplayBuffer
 
+from gentlerl.data.prioritized import FlatPriorityTree
 from gentlerl.models import make_actor
 from gentlerl.training.config import TrainConfig, make_config
+
+
+class CheckpointError(ValueError):
+    """A checkpoint or policy file that cannot be read; the message names the file."""
+
+
+_TD, _TREE, _ARRAY = "__tensordict__", "__priority_tree__", "__ndarray__"
+
+
+def _to_plain(obj: Any) -> Any:
+    """``obj`` with tensordicts, priority trees and numpy arrays as tagged plain dicts (numpy
+    scalars as Python numbers)."""
+    if isinstance(obj, TensorDictBase):
+        return {_TD: _to_plain(obj.to_dict()), "batch_size": list(obj.batch_size)}
+    if isinstance(obj, FlatPriorityTree):
+        return {_TREE: obj.reduce, "values": obj.values}
+    if isinstance(obj, np.ndarray):
+        return {_ARRAY: torch.from_numpy(obj.copy())}
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, dict):
+        return {k: _to_plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_to_plain(v) for v in obj)
+    return obj
+
+
+def _from_plain(obj: Any) -> Any:
+    """Inverse of :func:`_to_plain`."""
+    if isinstance(obj, dict):
+        if _TD in obj:
+            return TensorDict(_from_plain(obj[_TD]), batch_size=obj["batch_size"])
+        if _TREE in obj:
+            tree = FlatPriorityTree(len(obj["values"]), obj[_TREE], obj["values"].dtype)
+            tree.values = obj["values"]
+            return tree
+        if _ARRAY in obj:
+            return obj[_ARRAY].numpy()
+        return {k: _from_plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_from_plain(v) for v in obj)
+    return obj
+
+
+def remove_stale_temp_files(run_dir: str | os.PathLike) -> list[Path]:
+    """Delete the ``.<name>.*.tmp`` files a process killed inside :func:`save_checkpoint` left."""
+    stale = sorted(Path(run_dir).glob(".*.pt.*.tmp"))
+    for tmp in stale:
+        tmp.unlink(missing_ok=True)
+    return stale
 
 
 def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
     """``torch.save`` to a temporary file in the same directory, fsync, then ``os.replace``.
 
     ``os.replace`` is atomic on POSIX: a reader sees the old checkpoint or the new one, never a
-    partial file.
+    partial file. ``state`` may hold tensors, plain containers, tensordicts, numpy arrays and
+    :class:`~gentlerl.data.prioritized.FlatPriorityTree` (see the module docstring).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            torch.save(state, f)
+            torch.save(_to_plain(state), f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -36,11 +97,29 @@ def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
-    """Load a checkpoint written by :func:`save_checkpoint` (it holds RNG states and counters)."""
+    """Load a file written by :func:`save_checkpoint`, executing no code from it.
+
+    Raises:
+        FileNotFoundError: no file at ``path``.
+        CheckpointError: a truncated, corrupt or foreign file (one line naming it).
+    """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint at {path}")
-    return torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # damaged bytes fail anywhere in the unpickler (KeyError, EOFError...)
+        lines = str(err).strip().splitlines() or [type(err).__name__]
+        # torch's weights-only refusal explains itself on the "Unsupported global" line.
+        reason = next((line for line in lines if "Unsupported global" in line), lines[0])
+        reason = reason.strip().split(" was not an allowed global")[0].split(". ")[0]
+        raise CheckpointError(
+            f"cannot read checkpoint {path} ({reason[:120]}): it is truncated, corrupt, or not "
+            "written by this gentlerl; restore a good copy, or delete it to start the run afresh"
+        ) from None
+    if not isinstance(state, dict):
+        raise CheckpointError(f"{path} holds a {type(state).__name__}, not a gentlerl checkpoint")
+    return _from_plain(state)
 
 
 def replay_buffer_state(rb: ReplayBuffer) -> dict[str, Any]:
@@ -74,6 +153,9 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
     Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env_kwargs)``.
     """
     state = load_checkpoint(path)
+    missing = [k for k in ("config", "obs_dim", "action_dim", "actor") if k not in state]
+    if missing:
+        raise CheckpointError(f"{path} is not a gentlerl policy file: it lacks {missing}")
     cfg = make_config(**state["config"])
     actor = make_actor(state["obs_dim"], state["action_dim"], cfg.actor_hidden)
     actor.load_state_dict(state["actor"])

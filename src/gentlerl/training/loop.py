@@ -42,6 +42,7 @@ from gentlerl.training.builders import (
 from gentlerl.training.checkpoint import (
     load_checkpoint,
     load_replay_buffer_state,
+    remove_stale_temp_files,
     replay_buffer_state,
     save_checkpoint,
 )
@@ -211,6 +212,7 @@ class Trainer:
     def run(self) -> dict[str, float]:
         cfg = self.cfg
         ckpt = self.run_dir / CHECKPOINT
+        remove_stale_temp_files(self.run_dir)
         if cfg.resume and ckpt.exists():
             self.load_state_dict(load_checkpoint(ckpt))
         elif not cfg.resume and (ckpt.exists() or (self.run_dir / "logs").exists()):
