@@ -84,15 +84,15 @@ class DriverHandEnv(EnvBase):
     ) -> None:
         super().__init__(device="cpu", batch_size=torch.Size([]))
         self.task = _make_task(task, task_kwargs)
-        self.driver, self.spec_ = driver, driver.spec
-        if calibration.shape != (N_SITES, self.spec_.tactile_channels):
+        self.driver, self.driver_spec = driver, driver.spec
+        if calibration.shape != (N_SITES, self.driver_spec.tactile_channels):
             raise ValueError(
                 f"calibration is for {calibration.shape} sites x channels; the driver reads "
-                f"{(N_SITES, self.spec_.tactile_channels)}"
+                f"{(N_SITES, self.driver_spec.tactile_channels)}"
             )
         if not bool(calibration.fitted):
             raise ValueError("calibration is not fitted: call fit(raw, force) or load it first")
-        if watchdog is not None and watchdog.block_limit and not self.spec_.has_block_force:
+        if watchdog is not None and watchdog.block_limit and not self.driver_spec.has_block_force:
             raise ValueError("watchdog.block_limit is set but the driver has no block sensor")
         if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
             raise ValueError(
@@ -100,23 +100,23 @@ class DriverHandEnv(EnvBase):
             )
         self.calibration, self.watchdog = calibration, watchdog
         self.time_limit, self.tare, self.close_driver = int(time_limit), tare, close_driver
-        self.targets = np.zeros(len(self.spec_.target_low))
+        self.targets = np.zeros(len(self.driver_spec.target_low))
         self.offset: torch.Tensor | None = None
         self.touch = np.zeros((N_SITES, CHANNELS))
         self.steps = 0
-        obs = dict(_hand_env_specs().items())
-        obs[keys.TACTILE] = Unbounded((N_SITES, self.spec_.tactile_channels))
+        obs = _hand_env_specs()
+        obs[keys.TACTILE] = Unbounded((N_SITES, self.driver_spec.tactile_channels))
         obs[keys.BLOCK_FORCE] = Unbounded((1,))
         obs[keys.WATCHDOG] = _flag()
         self.observation_spec = Composite(obs)
-        self.action_spec = Bounded(-1.0, 1.0, (len(self.spec_.target_low),))
+        self.action_spec = Bounded(-1.0, 1.0, (len(self.driver_spec.target_low),))
         self.reward_spec = Unbounded((1,))
         self.full_done_spec = Composite(done=_flag(), terminated=_flag(), truncated=_flag())
 
     # -- one reading ----------------------------------------------------------------------------
     def _sense(self) -> tuple[np.ndarray, HandReading]:
         """Read the driver; return the calibrated ``touch`` [5, 3] (N) and the checked reading."""
-        reading = check_reading(self.driver.read(), self.spec_)
+        reading = check_reading(self.driver.read(), self.driver_spec)
         force = self.calibration.forward_map(reading.tactile, self.offset).numpy()
         touch = np.zeros((N_SITES, CHANNELS))
         touch[:, : force.shape[-1]] = force
@@ -144,10 +144,10 @@ class DriverHandEnv(EnvBase):
 
     # -- EnvBase --------------------------------------------------------------------------------
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
-        self.targets = check_targets(self.driver.reset(), self.spec_, "driver.reset()")
+        self.targets = check_targets(self.driver.reset(), self.driver_spec, "driver.reset()")
         self.offset = None
         if self.tare:
-            at_rest = check_reading(self.driver.read(), self.spec_).tactile
+            at_rest = check_reading(self.driver.read(), self.driver_spec).tactile
             self.offset = self.calibration.tare(at_rest)
         touch, reading = self._sense()
         self.touch, self.steps = touch, 0
@@ -156,7 +156,7 @@ class DriverHandEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get(keys.ACTION).detach().cpu().numpy()
-        low, high = self.spec_.target_low, self.spec_.target_high
+        low, high = self.driver_spec.target_low, self.driver_spec.target_high
         targets = self.task.next_targets(self.targets, action, low, high)
         self.driver.command(targets)
         touch, reading = self._sense()

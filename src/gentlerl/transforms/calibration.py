@@ -94,7 +94,7 @@ class TouchCalibration(Transform):
         if not (isinstance(n_knots, int) and n_knots >= 2):
             raise ValueError(f"n_knots must be an integer >= 2, got {n_knots!r}")
         super().__init__(
-            in_keys=in_keys or [keys.TACTILE], out_keys=out_keys or ["calibrated_" + keys.TACTILE]
+            in_keys=in_keys or [keys.TACTILE], out_keys=out_keys or [keys.CALIBRATED_TACTILE]
         )
         self.shape = (n_sites, n_channels)
         self.register_buffer("raw_knots", torch.arange(n_knots).expand(*self.shape, -1).double())
