@@ -19,6 +19,7 @@ from gentlerl.envs import (
     SimulatedDriver,
 )
 from gentlerl.envs.sim_driver import calibration_session
+from gentlerl.training.logging import EpisodeTracker
 from gentlerl.transforms import TouchCalibration
 
 A_FFJ2 = 3  # flexing the first finger's knuckle presses its pad into the block
@@ -241,3 +242,14 @@ def test_same_seed_same_rollout(sim_calibration, driver_env):
         torch.manual_seed(0)
         rollouts.append(env.rollout(20))
     assert (rollouts[0] == rollouts[1]).all()
+
+
+def test_episode_statistics_count_watchdog_endings(driver_env):
+    watchdog = ForceWatchdog(fingertip_limit=None, block_limit=8.0)
+    driver = FakeDriver([[0.0] * 5], block=[0.0, 0.0, 9.0])
+    env = driver_env(driver, "touch", calibration=_linear_calibration(), watchdog=watchdog)
+    batch = env.rollout(5, break_when_any_done=True)
+    batch.set(("collector", "traj_ids"), torch.zeros(len(batch), dtype=torch.long))
+    batch.set(("next", keys.IMPACT), torch.zeros(len(batch), 5))
+    (episode,) = EpisodeTracker([keys.REWARD]).update(batch)
+    assert episode["watchdog"] == 1.0 and episode["length"] == 2
