@@ -63,18 +63,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=20_000)
     parser.add_argument("--out", default=None, help="save the raw profile here")
-    parser.add_argument("overrides", nargs="*", help="config overrides key=value")
+    parser.add_argument("overrides", nargs="*", help="config overrides group.field=value")
     args = parser.parse_args()
-    overrides = {k: yaml.safe_load(v) for k, v in (o.split("=", 1) for o in args.overrides)}
+    overrides: dict = {"collector": {"total_frames": args.frames}}
+    overrides["logging"] = {"progress": False, "wandb_mode": "offline"}
+    for name, value in (o.split("=", 1) for o in args.overrides):
+        group, _, field = name.rpartition(".")
+        (overrides.setdefault(group, {}) if group else overrides)[field] = yaml.safe_load(value)
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as run_dir:
-        cfg = make_config(
-            total_frames=args.frames,
-            run_dir=run_dir,
-            progress=False,
-            wandb_mode="offline",
-            **overrides,
-        )
+        cfg = make_config(run_dir=run_dir, **overrides)
         profiler = cProfile.Profile()
         start = time.perf_counter()
         profiler.runcall(train, cfg)

@@ -68,15 +68,14 @@ def summarize(run_dir: Path, final: dict[str, float]) -> dict[str, Any]:
 def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None) -> dict[str, Any]:
     """Train one run (``env`` is ``driver`` or ``sim``) and summarise it."""
     run_dir = Path(args.run_dir) / env
-    overrides = {"total_frames": args.total_frames} if args.total_frames else {}
+    collector = {"total_frames": args.total_frames} if args.total_frames else {}
     cfg = make_config(
         "real",
         task="touch",
         seed=args.seed,
         run_dir=str(run_dir),
-        wandb_mode="disabled",
-        progress=args.progress,
-        **overrides,
+        logging={"wandb_mode": "disabled", "progress": args.progress},
+        collector=collector,
     )
     watchdogs: list[ForceWatchdog] = []
     factory = None

@@ -30,7 +30,8 @@ while [ $# -gt 0 ]; do
 done
 
 case "$scale" in
-  cpu) extra=(--set total_frames=25000 --set eval_every_frames=5000 --set eval_episodes=5) ;;
+  cpu) extra=(--set collector.total_frames=25000 --set logging.eval_every_frames=5000
+       --set logging.eval_episodes=5) ;;
   paper) extra=() ;;
   *) echo "--scale must be cpu or paper, got $scale" >&2; exit 2 ;;
 esac
@@ -38,7 +39,8 @@ esac
 start=$(date +%s)
 for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
   python -m gentlerl.sweeps "recipes/sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
-    --backend "$backend" "${address[@]}" --out "$out/$scale" --set wandb_mode=disabled --set progress=false "${extra[@]}"
+    --backend "$backend" "${address[@]}" --out "$out/$scale" --set logging.wandb_mode=disabled \
+    --set logging.progress=false "${extra[@]}"
   python -m gentlerl.plot "$out/$scale/$sweep" -o "$figures/$scale/$sweep"
 done
 echo "reproduction ($scale) took $(( ($(date +%s) - start) / 60 )) min; figures in $figures/$scale"

@@ -42,8 +42,12 @@ def test_fused_critic_shapes_and_paper_defaults():
     td = TensorDict(
         {keys.OBSERVATION: torch.randn(5, 7, 63), keys.ACTION: torch.rand(5, 7, 20)}, [5, 7]
     )
-    logits = critic(td)[keys.STATE_ACTION_VALUE_LOGITS]
-    assert logits.shape == (5, 7, 4, 101)
+    out = critic(td)
+    assert out[keys.STATE_ACTION_VALUE_LOGITS].shape == (5, 7, 4, 101)
+    # The paper's support: 101 atoms 2 apart on [-100, 100], for every head.
+    atoms = out[keys.STATE_ACTION_VALUE_ATOMS]
+    assert atoms.shape == (5, 7, 4, 101)
+    torch.testing.assert_close(atoms[0, 0, 3], torch.linspace(-100.0, 100.0, 101))
     fused = critic.module
     assert [layer.weight.shape for layer in fused.layers] == [(4, 83, 400), (4, 400, 300)]
     assert fused.head.weight.shape == (4, 300, 101)
@@ -76,7 +80,7 @@ def test_fused_critic_equals_k_separate_critics():
     fused = FusedCritic(6, 2, num_heads=3, hidden=(16, 8), num_atoms=11)
     separate = [_separate_critic(fused, k) for k in range(3)]
     obs, act = torch.randn(10, 6), torch.randn(10, 2)
-    out = fused(obs, act)
+    out, _ = fused(obs, act)
     for k, seq in enumerate(separate):
         torch.testing.assert_close(out[:, k], seq(torch.cat([obs, act], -1)))
 
@@ -86,7 +90,7 @@ def test_heads_are_independent_in_init_and_gradient():
     fused = FusedCritic(6, 2, num_heads=3, hidden=(16, 8), num_atoms=11)
     w = fused.layers[0].weight
     assert not torch.allclose(w[0], w[1])
-    fused(torch.randn(4, 6), torch.randn(4, 2))[:, 1].sum().backward()
+    fused(torch.randn(4, 6), torch.randn(4, 2))[0][:, 1].sum().backward()
     for p in (fused.layers[0].weight, fused.layers[1].weight, fused.head.weight, fused.norm.weight):
         assert p.grad[1].abs().sum() > 0
         assert p.grad[0].abs().sum() == 0 and p.grad[2].abs().sum() == 0
@@ -99,3 +103,17 @@ def test_bad_sizes_raise(kwargs):
     args = dict(obs_dim=6, action_dim=2, num_heads=2) | kwargs
     with pytest.raises(ValueError):
         FusedCritic(**args)
+
+
+def test_the_critic_owns_a_support_per_head():
+    # Task head on [-10, 10], penalty head on [-10, 0]: 5 atoms, 5.0 and 2.5 apart.
+    fused = FusedCritic(6, 2, num_heads=2, hidden=(8,), num_atoms=5, v_min=-10.0, v_max=[10.0, 0.0])
+    expected = torch.tensor([[-10.0, -5.0, 0.0, 5.0, 10.0], [-10.0, -7.5, -5.0, -2.5, 0.0]])
+    torch.testing.assert_close(fused.support, expected)
+    _, atoms = fused(torch.randn(3, 6), torch.randn(3, 2))
+    torch.testing.assert_close(atoms, expected.expand(3, 2, 5))
+    assert not any("v_" in name for name in fused.state_dict())  # set by the config, not learned
+    with pytest.raises(ValueError, match=r"v_max=\[10.0\] needs one value per head \(2 heads\)"):
+        FusedCritic(6, 2, num_heads=2, v_min=-10.0, v_max=[10.0])
+    with pytest.raises(ValueError, match="need v_min < v_max for every head"):
+        FusedCritic(6, 2, num_heads=2, v_min=-10.0, v_max=[10.0, -20.0])

@@ -142,46 +142,50 @@ def test_trainer_state_round_trip(tmp_path):
     target = "target_value_network_params"
     assert (getattr(resumed.learner.loss, target) == getattr(run.learner.loss, target)).all()
     assert resumed.learner.target_updater.counter == run.learner.target_updater.counter
-    sa, sb = resumed.learner.critic_optim.state_dict(), run.learner.critic_optim.state_dict()
+    sa, sb = resumed.learner.optimizer.state_dict(), run.learner.optimizer.state_dict()
     assert all(
         torch.equal(sa["state"][k]["exp_avg"], sb["state"][k]["exp_avg"]) for k in sa["state"]
     )
-    assert (resumed.rb[:] == run.rb[:]).all() and len(resumed.model_rb) == 500
-    for name, loss in run.stack.model_losses.items():
-        other = resumed.stack.model_losses[name].state_dict()
+    assert (resumed.rb[:] == run.rb[:]).all() and len(resumed.rewards.buffer) == 500
+    for name, loss in run.rewards.losses.items():
+        other = resumed.rewards.losses[name].state_dict()
         assert all(torch.equal(v, other[k]) for k, v in loss.state_dict().items())
-    assert resumed.stack.intrinsic_on == run.stack.intrinsic_on
+    assert resumed.rewards.intrinsic_on == run.rewards.intrinsic_on
     assert torch.equal(torch.get_rng_state(), run.state_dict()["rng"]["torch"])
     cfg, actor = load_policy(tmp_path / "checkpoint.pt")
     assert cfg == run.cfg
     obs = TensorDict({"observation": torch.randn(7, 63)}, [7])
     assert torch.equal(actor(obs.clone())["action"], run.learner.actor(obs.clone())["action"])
     # The pending n-step tail (the last 5 steps) comes back with its last step cut (truncated).
-    (tail,) = resumed.nstep_tails
+    tail = resumed.writer.tail
     assert tail.shape == (5,) and tail["next", "truncated"][:, 0].tolist() == [0, 0, 0, 0, 1]
 
 
 def test_resume_to_a_longer_run_keeps_every_transition(tmp_path):
-    straight = Trainer(tiny_config(tmp_path / "a", total_frames=800), toy_env)
+    straight = Trainer(tiny_config(tmp_path / "a", collector={"total_frames": 800}), toy_env)
     straight.run()
-    train_part = Trainer(tiny_config(tmp_path / "b", total_frames=500), toy_env)
+    train_part = Trainer(tiny_config(tmp_path / "b", collector={"total_frames": 500}), toy_env)
     train_part.run()
-    resumed = Trainer(tiny_config(tmp_path / "b", total_frames=800, resume=True), toy_env)
+    resumed = Trainer(
+        tiny_config(tmp_path / "b", collector={"total_frames": 800}, resume=True), toy_env
+    )
     resumed.run()
     assert resumed.counters["frames"] == 800 and resumed.counters["updates"] == 300
     # 800 frames, the last 5 pending for their n-step window: same count with and without a cut.
-    assert len(resumed.rb) == len(straight.rb) == 795 and len(resumed.model_rb) == 800
+    assert len(resumed.rb) == len(straight.rb) == 795 and len(resumed.rewards.buffer) == 800
 
 
 def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     run_dir = tmp_path / "run"
     command = [
         sys.executable, str(ROOT / "recipes" / "train.py"), "task=touch", "variant=r+rf",
-        f"run_dir={run_dir}", "total_frames=1600", "frames_per_batch=100",
-        "init_random_frames=100", "checkpoint_every_frames=300", "eval_every_frames=100000",
-        "eval_episodes=1", "batch_size=16", "actor_hidden=[16]", "critic_hidden=[16]",
-        "num_atoms=11", "buffer_size=5000", "model_buffer_size=5000", "wandb_mode=disabled",
-        "progress=false", "num_threads=1", "utd_ratio=0.25", "+env_kwargs.time_limit=40",
+        f"run_dir={run_dir}", "collector.total_frames=1600", "collector.frames_per_batch=100",
+        "collector.init_random_frames=100", "logging.checkpoint_every_frames=300",
+        "logging.eval_every_frames=100000", "logging.eval_episodes=1", "replay.batch_size=16",
+        "network.actor_hidden=[16]", "network.critic_hidden=[16]", "network.num_atoms=11",
+        "replay.buffer_size=5000", "gentleness.model_buffer_size=5000",
+        "logging.wandb_mode=disabled", "logging.progress=false", "num_threads=1",
+        "learner.utd_ratio=0.25", "+env.kwargs.time_limit=40",
     ]  # fmt: skip
     env = {**os.environ, "RL_WARNINGS": "0"}
     proc = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -201,8 +205,8 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     state = load_checkpoint(ckpt)
     assert state["counters"]["frames"] == 1600
     assert state["counters"]["updates"] == 0.25 * (1600 - 100)
-    # Every frame is in the models' 1-step buffer and all but the 5 pending in the n-step one.
-    assert len(state["model_rb"]["_storage"]["data"]) == 1600
+    # r+rf learns no model (no 1-step buffer); all but the 5 pending frames are n-step transitions.
+    assert state["model_rb"] is None
     assert len(state["rb"]["_storage"]["data"]) == 1600 - 5
     # The logs hold each frame count once: rows past the checkpoint were dropped on resume.
     steps = [

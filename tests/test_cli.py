@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from gentlerl import cli
+from gentlerl.agent import VARIANTS
 from gentlerl.envs import TASKS
-from gentlerl.transforms import VARIANTS
+from gentlerl.training import cli as train_cli
 from tests.test_plot import _fake_run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,10 +61,10 @@ def test_train_help_lists_tasks_variants_scales_and_the_config_defaults():
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     text = " ".join(done.stdout.split())
-    assert f"task={'|'.join(TASKS)}" in text
-    assert "scale: cpu, paper" in text
-    assert "variant: " + ", ".join(sorted(VARIANTS)) in text
-    assert "total_frames: 100000" in text and "seed: 0" in text
+    assert "task=touch the env task {" + ", ".join(TASKS) + "}" in text
+    assert "scale=cpu preset applied under the overrides {cpu, paper, real}" in text
+    assert "{" + ", ".join(VARIANTS) + "}" in text
+    assert "collector.total_frames=100000" in text and "seed=0" in text
 
 
 def test_plot_command_writes_the_figure_set(tmp_path, capsys):
@@ -81,15 +82,7 @@ def test_plot_command_writes_the_figure_set(tmp_path, capsys):
 
 def test_train_command_runs_the_hydra_app_with_its_overrides(monkeypatch):
     seen = {}
-
-    def fake_run_path(path, run_name):
-        seen.update(path=path, run_name=run_name, argv=list(sys.argv))
-
-    monkeypatch.setattr(cli.runpy, "run_path", fake_run_path)
+    monkeypatch.setattr(train_cli, "main", lambda: seen.update(argv=list(sys.argv)))
     assert cli.main(["train", "variant=r", "seed=3"]) == 0
-    assert seen == {
-        "path": str(ROOT / "recipes" / "train.py"),
-        "run_name": "__main__",
-        "argv": ["gentlerl train", "variant=r", "seed=3"],
-    }
+    assert seen == {"argv": ["gentlerl train", "variant=r", "seed=3"]}
     assert sys.argv[0] != "gentlerl train"  # restored

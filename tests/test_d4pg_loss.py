@@ -4,6 +4,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 from torchrl.objectives import HardUpdate
+from torchrl.objectives.utils import ValueEstimators
 
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
@@ -11,12 +12,14 @@ from gentlerl.objectives import MultiHeadD4PGLoss
 OBS, ACT = 3, 1
 
 
-def _loss(heads=2, v=(-10.0, 10.0), atoms=21, **kwargs):
+def _loss(heads=2, v=(-10.0, 10.0), atoms=21, gamma=0.99, **kwargs):
     torch.manual_seed(0)
     keys = ["reward", "penalty", "extra"][:heads]
     actor = make_actor(OBS, ACT, hidden=(32, 32))
-    critic = make_critic(OBS, ACT, num_heads=heads, hidden=(64, 64), num_atoms=atoms)
-    return MultiHeadD4PGLoss(actor, critic, reward_keys=keys, v_min=v[0], v_max=v[1], **kwargs)
+    critic = make_critic(OBS, ACT, heads, (64, 64), atoms, v_min=v[0], v_max=v[1])
+    loss = MultiHeadD4PGLoss(actor, critic, reward_keys=keys, **kwargs)
+    loss.make_value_estimator(gamma=gamma)
+    return loss
 
 
 def _batch(n=8, reward=1.0, penalty=-2.0, terminated=True, action=None, steps=None):
@@ -98,10 +101,6 @@ def test_per_head_support_caps_the_penalty_critic_at_zero():
     assert target[0, 1, 16].item() == pytest.approx(1.0)
     values = loss(_batch())["value_penalty"]
     assert -10.0 <= values.item() <= 0.0
-    with pytest.raises(ValueError, match=r"v_max=\[10.0\] needs one value per head \(2 heads\)"):
-        _loss(v=(-10.0, [10.0]))
-    with pytest.raises(ValueError, match="need v_min < v_max for every head"):
-        _loss(v=(-10.0, [10.0, -20.0]))
 
 
 def test_bootstrap_uses_gamma_to_the_n():
@@ -163,12 +162,40 @@ def test_head_count_mismatch_is_a_clear_error():
     actor = make_actor(OBS, ACT, hidden=(8,))
     critic = make_critic(OBS, ACT, num_heads=3, hidden=(8,), num_atoms=5)
     loss = MultiHeadD4PGLoss(actor, critic, reward_keys=["reward", "penalty"])
-    with pytest.raises(ValueError, match="3 heads but reward_keys has 2"):
+    with pytest.raises(ValueError, match="3 heads but there are 2 reward keys"):
         loss(_batch())
     with pytest.raises(ValueError, match="reward_keys"):
         MultiHeadD4PGLoss(actor, critic, reward_keys=[])
-    with pytest.raises(ValueError, match="gamma"):
-        MultiHeadD4PGLoss(actor, critic, reward_keys=["reward"], gamma=1.5)
+    with pytest.raises(ValueError, match="gamma must be in"):
+        loss.make_value_estimator(gamma=1.5)
+    with pytest.raises(NotImplementedError, match="TD0 only"):
+        loss.make_value_estimator(ValueEstimators.GAE)
+
+
+def test_value_and_actor_losses_are_callable_alone_and_sum_to_forward():
+    loss = _loss()
+    td = _batch()
+    value, info = loss.loss_value(td.clone())
+    actor, actor_info = loss.loss_actor(td.clone())
+    out = loss(td)
+    torch.testing.assert_close(value, out["loss_value"])
+    torch.testing.assert_close(actor, out["loss_actor"])
+    torch.testing.assert_close(info["per_head"][1], out["loss_value_penalty"])
+    # The actor loss is minus the summed head values at (s, pi(s)).
+    torch.testing.assert_close(actor, -actor_info["value"].sum())
+
+
+def test_reward_keys_are_renamed_with_set_keys():
+    loss = _loss()
+    td = _batch(reward=1.0, penalty=-2.0)
+    td["next", "force_penalty"] = td["next", "penalty"].clone()
+    before = loss.target_distribution(td)
+    loss.set_keys(rewards=("reward", "force_penalty"))
+    assert loss.reward_keys == ["reward", "force_penalty"]
+    assert set(loss(td.clone()).keys()) >= {"loss_value_force_penalty", "value_force_penalty"}
+    torch.testing.assert_close(loss.target_distribution(td), before)
+    with pytest.raises(ValueError, match="one reward per critic head"):
+        loss.set_keys(rewards=("reward",))
 
 
 def test_hard_update_copies_online_into_target_after_the_interval():

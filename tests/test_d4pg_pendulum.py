@@ -12,9 +12,9 @@ from torchrl.envs import Compose, DoubleToFloat, RewardScaling, TransformedEnv
 from torchrl.envs.libs.gym import GymEnv
 from torchrl.envs.transforms._action import ActionScaling
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
+from gentlerl.agent.learner import Learner
 from gentlerl.data import make_replay_buffer
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
@@ -36,13 +36,11 @@ def test_d4pg_swings_up_the_pendulum():
     torch.manual_seed(0)
     torch.set_num_threads(1)
     actor = make_actor(3, 1, (64, 64))
-    critic = make_critic(3, 1, num_heads=1, hidden=(128, 128), num_atoms=51)
+    critic = make_critic(3, 1, 1, (128, 128), 51, v_min=-100.0, v_max=5.0)
     # Scaled rewards lie in [-1.63, 0]: 3-step returns and values fit in [-100, 5].
-    loss = MultiHeadD4PGLoss(actor, critic, reward_keys=[keys.REWARD], v_min=-100.0, v_max=5.0)
+    loss = MultiHeadD4PGLoss(actor, critic, reward_keys=[keys.REWARD])
     loss.set_keys(terminated=keys.NSTEP_TERMINATED)
-    updater = HardUpdate(loss, value_network_update_interval=99)
-    opt_a = torch.optim.Adam(loss.actor_network_params.values(True, True), 3e-4)
-    opt_c = torch.optim.Adam(loss.value_network_params.values(True, True), 3e-4)
+    learner = Learner(loss, lr_actor=3e-4, lr_critic=3e-4, target_update_period=100)
     rb = make_replay_buffer(50_000, 128, n_steps=3, gamma=0.99)
     policy = make_exploration_policy(actor, sigma=0.3, action_dim=1)
     collector = Collector(
@@ -54,13 +52,7 @@ def test_d4pg_swings_up_the_pendulum():
             continue
         for _ in range(100):
             sample = rb.sample()
-            out = loss(sample)
-            opt_a.zero_grad()
-            opt_c.zero_grad()
-            (out["loss_value"] + out["loss_actor"]).backward()
-            opt_c.step()
-            opt_a.step()
-            updater.step()
+            learner.update(sample)
             rb.update_tensordict_priority(sample)
     collector.shutdown()
     env = _env(1)

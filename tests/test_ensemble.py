@@ -11,7 +11,6 @@ from gentlerl import keys
 from gentlerl.functional import gaussian_nll
 from gentlerl.models import DynamicsModel, GaussianEnsemble, ICMModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, ICMLoss
-from gentlerl.transforms import HAND_FEATURES
 
 
 @pytest.fixture(autouse=True)
@@ -173,7 +172,8 @@ def _transitions(env, n, gen):
 def test_dynamics_nll_on_held_out_hand_transitions_drops_after_training():
     torch.manual_seed(0)
     gen = torch.Generator().manual_seed(1)
-    model = DynamicsModel(63, 20, HAND_FEATURES, ensemble_size=5, hidden=(64, 64, 64))
+    features = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
+    model = DynamicsModel(63, 20, features, ensemble_size=5, hidden=(64, 64, 64))
     loss = EnsembleModelLoss(model, name="dynamics")
     # Random-action transitions of the hand env; the held-out episodes use another block offset.
     train, held_out = _hand_transitions(2000, gen, seed=0), _hand_transitions(400, gen, seed=1)

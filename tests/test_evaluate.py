@@ -15,8 +15,8 @@ INDEX_KNUCKLE = 3  # actuator robot0:A_FFJ2
 
 def _scripted_policy(path, push: float, task: str = "fragile"):
     """A checkpoint whose actor always outputs ``push`` on the index knuckle, 0 elsewhere."""
-    cfg = make_config(task=task, actor_hidden=(8,))
-    actor = make_actor(63, 20, cfg.actor_hidden)
+    cfg = make_config(task=task, network={"actor_hidden": (8,)})
+    actor = make_actor(63, 20, cfg.network.actor_hidden)
     last = actor.module[-2]
     with torch.no_grad():
         last.weight.zero_()

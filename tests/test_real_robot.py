@@ -5,11 +5,11 @@ import json
 from pathlib import Path
 
 import pytest
-from hydra import compose, initialize_config_dir
-from hydra.core.config_store import ConfigStore
-from omegaconf import OmegaConf
+from hydra import compose, initialize
 
-from gentlerl.training import TrainConfig, make_config
+from gentlerl.training import make_config
+from gentlerl.training.cli import config_from_hydra, register_configs
+from gentlerl.training.config import get, iter_fields
 from gentlerl.transforms import TouchCalibration
 
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
@@ -18,31 +18,28 @@ RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 def test_real_scale_is_the_paper_scale_with_the_real_robot_numbers():
     real, paper = make_config("real"), make_config("paper")
     # Huang et al. 2019, "Real robot experiments": 25,000 steps, lr 0.001, intrinsic delay 8,000.
-    assert (real.total_frames, real.lr_actor, real.lr_critic, real.reward_delay) == (
-        25_000,
-        1e-3,
-        1e-3,
-        8_000,
-    )
-    assert (paper.lr_actor, paper.reward_delay) == (1e-4, 20_000)
-    different = {k for k, v in real.to_dict().items() if v != paper.to_dict()[k] and k != "scale"}
+    assert real.collector.total_frames == 25_000 and real.gentleness.reward_delay == 8_000
+    assert real.learner.lr_actor == real.learner.lr_critic == 1e-3
+    assert (paper.learner.lr_actor, paper.gentleness.reward_delay) == (1e-4, 20_000)
+    different = {
+        name for name, _ in iter_fields() if get(real, name) != get(paper, name) and name != "scale"
+    }
     assert different == {
-        "total_frames",
-        "init_random_frames",
-        "lr_actor",
-        "lr_critic",
-        "reward_delay",
-        "eval_every_frames",
-        "checkpoint_every_frames",
+        "collector.total_frames",
+        "collector.init_random_frames",
+        "learner.lr_actor",
+        "learner.lr_critic",
+        "gentleness.reward_delay",
+        "logging.eval_every_frames",
+        "logging.checkpoint_every_frames",
     }
 
 
 def test_hydra_scale_real_composes_to_the_preset():
-    ConfigStore.instance().store(name="train_config", node=TrainConfig)
-    with initialize_config_dir(str(RECIPES / "config"), version_base="1.3"):
-        cfg = compose("config", overrides=["scale=real", "seed=3"])
-    values = OmegaConf.to_container(cfg, resolve=True)
-    assert make_config(**values) == make_config("real", seed=3, run_dir=values["run_dir"])
+    register_configs()
+    with initialize(version_base="1.3", config_path=None):
+        cfg = config_from_hydra(compose("gentlerl_train", overrides=["scale=real", "seed=3"]))
+    assert cfg == make_config("real", seed=3, run_dir="runs/touch/r+rf+rsp/seed3")
 
 
 @pytest.mark.slow

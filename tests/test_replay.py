@@ -7,7 +7,7 @@ from tensordict import TensorDict
 from torchrl.data import PrioritizedSampler
 
 from gentlerl import keys
-from gentlerl.data import make_beta_scheduler, make_model_buffer, make_replay_buffer
+from gentlerl.data import NStepWriter, make_beta_scheduler, make_model_buffer, make_replay_buffer
 
 
 def _trajectory(T=8, terminal_at=4):
@@ -119,3 +119,33 @@ def test_sampling_frequencies_match_priorities_to_the_alpha():
     obs = rb.sample()["observation"].squeeze(-1).long()
     freq = torch.bincount(obs, minlength=3).float() / obs.numel()
     torch.testing.assert_close(freq, torch.tensor([1.0, 2.0, 4.0]) / 7, atol=0.01, rtol=0)
+
+
+def test_nstep_writer_keeps_each_env_row_apart_and_resumes_with_a_cut():
+    # Two env rows written as one [2, T] batch give the rows' windows, row by row; no window
+    # mixes rows (row 1's observations are offset by 100).
+    rows = [_trajectory(T=8, terminal_at=2), _trajectory(T=8, terminal_at=2)]
+    rows[1]["observation"] += 100
+    rows[1]["next", "observation"] += 100
+    keys_ = ["reward", "penalty"]
+    writer = NStepWriter(make_replay_buffer(100, 4, n_steps=None), 3, 0.5, keys_)
+    writer.extend(torch.stack(rows))
+    reference = make_replay_buffer(
+        100, 4, prioritized=False, n_steps=3, gamma=0.5, reward_keys=keys_
+    )
+    reference.extend(rows[0])
+    stored = writer.rb[:]
+    assert len(writer.rb) == 2 * 5 and writer.tail.shape == (2, 3)
+    assert (stored[:5] == reference[:]).all()
+    assert (stored[5:]["next", "observation"] - stored[5:]["observation"] <= 3).all()
+    # Resuming: the tail comes back with its last step truncated, so its windows end there.
+    resumed = NStepWriter(make_replay_buffer(100, 4, n_steps=None), 3, 0.5, keys_)
+    resumed.load_state_dict(writer.state_dict())
+    assert len(resumed.rb) == 0 and resumed.tail["next", "truncated"][:, -1].all()
+    resumed.extend(torch.stack([_trajectory(T=4, terminal_at=3)] * 2))
+    first = resumed.rb[:]
+    # Row 0's windows from t = 6 and 7 stop at the cut (t = 7) instead of reaching the new batch.
+    assert first["steps_to_next_obs"][:3].flatten().tolist() == [3, 2, 1]
+    assert first["next", "observation"][:3].flatten().tolist() == [8.0, 8.0, 8.0]
+    with pytest.raises(ValueError, match="without transforms"):
+        NStepWriter(make_replay_buffer(100, 4), 3, 0.5, keys_)

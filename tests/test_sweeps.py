@@ -3,14 +3,17 @@
 from pathlib import Path
 
 import pytest
+import yaml
 
 from gentlerl.sweeps import expand, load_sweep, main, run_grid
 
 SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
 TINY = [
-    "total_frames=300", "init_random_frames=200", "frames_per_batch=100", "batch_size=16",
-    "eval_episodes=1", "eval_every_frames=300", "checkpoint_every_frames=300", "wandb_mode=disabled",
-    "progress=false", "actor_hidden=[16]", "critic_hidden=[16]", "model_hidden=8",
+    "collector.total_frames=300", "collector.init_random_frames=200",
+    "collector.frames_per_batch=100", "replay.batch_size=16", "logging.eval_episodes=1",
+    "logging.eval_every_frames=300", "logging.checkpoint_every_frames=300",
+    "logging.wandb_mode=disabled", "logging.progress=false", "network.actor_hidden=[16]",
+    "network.critic_hidden=[16]", "gentleness.model_hidden=8",
 ]  # fmt: skip
 
 
@@ -51,11 +54,12 @@ def test_finished_runs_are_skipped_and_checkpointed_ones_resumed(tmp_path, monke
 def test_a_real_tiny_grid_runs_the_recipe_and_then_skips_it(tmp_path):
     sweep = tmp_path / "tiny.yaml"
     sweep.write_text("method: grid\nparameters:\n  variant: {values: [r+rf+rsp]}\n"
-                     "  lam_prime: {values: [[2, 1.5]]}\n  seed: {values: [0]}\n")  # fmt: skip
+                     "  gentleness.lam_prime: {values: [[2, 1.5]]}\n  seed: {values: [0]}\n")  # fmt: skip
     args = [str(sweep), "--out", str(tmp_path / "runs"), *sum((["--set", o] for o in TINY), [])]
     assert main(args) == 0
     run = tmp_path / "runs" / "tiny" / "variant-r+rf+rsp_lam_prime-2-1.5_seed-0"
     assert (run / "DONE").exists() and (run / "eval_episodes.csv").exists()
-    assert "lam_prime:\n- 2.0\n- 1.5" in (run / "config.yaml").read_text()
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    assert config["gentleness"]["lam_prime"] == [2.0, 1.5]
     assert main(args) == 0  # second time: skipped, nothing re-run
     assert (run / "stdout.log").read_text().count("success_rate=") == 1

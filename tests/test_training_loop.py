@@ -13,41 +13,53 @@ from torchrl.envs import TransformedEnv
 
 from gentlerl import keys
 from gentlerl.training import Trainer, load_policy, make_config, train
+from gentlerl.training.config import iter_fields
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EVAL_COLUMNS, EpisodeTracker
 from gentlerl.transforms import ImpactPenalty
 from tests.toy_env import ToyHandEnv
 
-
-def tiny_config(run_dir: Path, **overrides):
-    """Small nets, few frames: a full loop (with model updates) in a few seconds."""
-    values = dict(
-        total_frames=1000,
-        frames_per_batch=100,
-        init_random_frames=200,
-        batch_size=32,
-        utd_ratio=0.5,
-        actor_hidden=(32, 32),
-        critic_hidden=(32, 32),
-        num_atoms=11,
-        v_min=-10.0,
-        v_max=10.0,
+#: Small nets, few frames: a full loop (with model updates) in a few seconds.
+TINY = dict(
+    num_threads=1,  # tiny nets; 2 threads on a shared 2-core CPU is many times slower
+    collector=dict(total_frames=1000, frames_per_batch=100, init_random_frames=200),
+    replay=dict(batch_size=32),
+    learner=dict(utd_ratio=0.5),
+    network=dict(actor_hidden=(32, 32), critic_hidden=(32, 32), num_atoms=11),
+    gentleness=dict(
         reward_delay=100,
         dynamics_target_period=20,
         penalty_target_period=10,
         model_hidden=16,
         model_batch_size=16,
+    ),
+    logging=dict(
         eval_every_frames=500,
         eval_episodes=2,
         log_every_updates=50,
         checkpoint_every_frames=500,
-        run_dir=str(run_dir),
         wandb_mode="disabled",
         progress=False,
-        num_threads=1,  # tiny nets; 2 threads on a shared 2-core CPU is many times slower
-    )
-    values.update(overrides)
-    return make_config(**values)
+    ),
+)
+
+
+#: Field name -> its group, for the tests' short form ``tiny_config(path, total_frames=300)``.
+GROUP_OF = {name.split(".")[1]: name.split(".")[0] for name, _ in iter_fields() if "." in name}
+
+
+def tiny_config(run_dir: Path, **overrides):
+    """:data:`TINY` with ``overrides`` on top: top-level fields, ``group={field: value}``, or a
+    group's field by its name alone (``total_frames=300``)."""
+    values = {k: dict(v) if isinstance(v, dict) else v for k, v in TINY.items()}
+    for name, value in overrides.items():
+        if isinstance(value, dict) and name not in GROUP_OF:
+            values.setdefault(name, {}).update(value)
+        elif name in GROUP_OF:
+            values.setdefault(GROUP_OF[name], {})[name] = value
+        else:
+            values[name] = value
+    return make_config(run_dir=str(run_dir), **values)
 
 
 def toy_env():
@@ -69,7 +81,7 @@ def finished_run(tmp_path_factory):
 
 def test_same_seed_same_losses_other_seed_other_losses(tmp_path):
     for name, seed in (("first", 0), ("again", 0), ("seed1", 1)):
-        train(tiny_config(tmp_path / name, total_frames=600, seed=seed), toy_env)
+        train(tiny_config(tmp_path / name, collector={"total_frames": 600}, seed=seed), toy_env)
     for name in ("train/loss_value", "train/loss_actor", "train/model_penalty"):
         first = read_scalar(tmp_path / "first", name)
         assert len(first) == 4 and read_scalar(tmp_path / "again", name) == first, name
@@ -94,7 +106,7 @@ def test_same_seed_same_logged_scalars_with_the_hand_env(tmp_path):
     for name in ("first", "again"):
         cfg = tiny_config(
             tmp_path / name, seed=3, variant="r+rf+rsp", total_frames=300, reward_delay=0,
-            env_kwargs={"time_limit": 30, "action_scale": 0.3}, eval_every_frames=300,
+            kwargs={"time_limit": 30, "action_scale": 0.3}, eval_every_frames=300,
             eval_episodes=1, log_every_updates=25,
         )  # fmt: skip
         train(cfg)
@@ -107,7 +119,10 @@ def test_same_seed_same_logged_scalars_with_the_hand_env(tmp_path):
 
 @pytest.mark.parametrize("utd_ratio", [0.5, 2.0])
 def test_update_to_data_ratio(tmp_path, utd_ratio):
-    trainer = Trainer(tiny_config(tmp_path, utd_ratio=utd_ratio, total_frames=500), toy_env)
+    trainer = Trainer(
+        tiny_config(tmp_path, learner={"utd_ratio": utd_ratio}, collector={"total_frames": 500}),
+        toy_env,
+    )
     trainer.run()
     # Updates start after the 200 random frames: utd * (500 - 200) updates.
     assert trainer.counters == {
@@ -121,9 +136,10 @@ def test_run_directory_follows_the_logging_contract(finished_run):
     run_dir, trainer, summary = finished_run
     assert (run_dir / "DONE").exists() and (run_dir / "checkpoint.pt").exists()
     config = yaml.safe_load((run_dir / "config.yaml").read_text())
-    for key in ("task", "variant", "seed", "scale", "lam", "lam_prime", "reward_delay"):
+    for key in ("task", "variant", "seed", "scale", "collector", "gentleness"):
         assert key in config
-    assert config["variant"] == "r+rf+rsp" and config["total_frames"] == 1000
+    assert config["gentleness"]["lam_prime"] == [2.0, 2.0]
+    assert config["variant"] == "r+rf+rsp" and config["collector"]["total_frames"] == 1000
     names = [
         "episode/return_reward",
         "episode/return_penalty",
@@ -195,7 +211,7 @@ def test_intrinsic_rewards_switch_on_after_the_reward_delay(finished_run):
     on = read_scalar(run_dir, "train/intrinsic_on")
     updates_at = {step: 0.5 * (step - 200) for step, _ in on}
     assert [v for s, v in on] == [float(updates_at[s] >= 100) for s, _ in on]
-    assert trainer.stack.intrinsic_on and trainer.counters["updates"] == 400
+    assert trainer.rewards.intrinsic_on and trainer.counters["updates"] == 400
 
 
 def test_episode_tracker_spans_batches():
@@ -243,18 +259,24 @@ def test_evaluation_is_deterministic_with_hand_computed_numbers():
 
 @pytest.mark.slow
 def test_learns_the_toy_press_task(tmp_path):
-    cfg = tiny_config(tmp_path, variant="r", total_frames=4000, eval_every_frames=4000)
+    cfg = tiny_config(
+        tmp_path,
+        variant="r",
+        collector={"total_frames": 4000},
+        logging={"eval_every_frames": 4000},
+    )
     summary = train(cfg, toy_env)
     assert summary["success_rate"] == 1.0
 
 
 def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
-    cfg = tiny_config(tmp_path, collector="multi", num_workers=2, total_frames=400, eval_episodes=1)
+    collector = dict(kind="multi", num_workers=2, total_frames=400)
+    cfg = tiny_config(tmp_path, collector=collector, logging={"eval_episodes": 1})
     trainer = Trainer(cfg, toy_env)
     trainer.run()
     # Batches are [2 workers, 50 steps]; each worker's row keeps its last 5 steps pending.
     assert trainer.counters["frames"] == 400 and trainer.counters["updates"] == 100
-    assert len(trainer.model_rb) == 400 and len(trainer.rb) == 400 - 2 * 5
+    assert len(trainer.rewards.buffer) == 400 and len(trainer.rb) == 400 - 2 * 5
     # n-step windows never mix workers: the toy env's joint position moves by at most 0.1 per
     # step, so n = steps_to_next_obs <= 5 steps can move it by at most 0.5.
     data = trainer.rb[:]
@@ -264,8 +286,9 @@ def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
 
 def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
     monkeypatch.setenv("WANDB_SILENT", "true")
-    assert make_config().wandb_mode == "offline"
-    train(tiny_config(tmp_path, wandb_mode="offline", total_frames=300, eval_episodes=1), toy_env)
+    assert make_config().logging.wandb_mode == "offline"
+    logging = {"wandb_mode": "offline", "eval_episodes": 1}
+    train(tiny_config(tmp_path, logging=logging, collector={"total_frames": 300}), toy_env)
     (run,) = (tmp_path / "wandb").glob("offline-run-*")
     assert list(run.glob("*.wandb"))  # the run's records, ready for `wandb sync`
 
@@ -276,12 +299,16 @@ def test_default_recipe_learns_touch(tmp_path):
     success (10 noise-free episodes) on the 2-core CPU, and still succeeds at the end of the run.
     Measured on 3 seeds x 100k frames: every seed reaches 1.0 by 15k frames (docs/REPRODUCTION.md)."""
     cfg = make_config(
-        run_dir=str(tmp_path), wandb_mode="disabled", progress=False, total_frames=30_000
+        run_dir=str(tmp_path),
+        logging={"wandb_mode": "disabled", "progress": False},
+        collector={"total_frames": 30_000},
     )
     trainer = Trainer(cfg)
     trainer.run()
     learned = [
-        e["success_rate"] for e in trainer.eval_history if e["frames"] > cfg.init_random_frames
+        e["success_rate"]
+        for e in trainer.eval_history
+        if e["frames"] > cfg.collector.init_random_frames
     ]
     assert max(learned) >= 0.8
     assert learned[-1] >= 0.8

@@ -9,24 +9,8 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import runpy
 import sys
 from collections.abc import Sequence
-from pathlib import Path
-
-#: The hydra training app (one config per variant and scale under ``recipes/config``).
-TRAIN_SCRIPT = Path(__file__).resolve().parents[2] / "recipes" / "train.py"
-
-TRAIN_HELP = """usage: gentlerl train [KEY=VALUE ...] [-m]
-
-Train an agent (hydra app, recipes/train.py); every KEY=VALUE overrides the config shown below.
-  task=explore|touch|fragile   variant=<group option>   scale=cpu|paper   seed=<int>
-  -m, --multirun               a local sweep over comma-separated values (variant=r,r+rf seed=0,1)
-Examples:
-  gentlerl train                                   # the default recipe (touch, r+rf+rsp, cpu)
-  gentlerl train task=fragile variant=r+rf+rsp lam_prime=[2,1.5] seed=1
-  gentlerl train resume=true run_dir=runs/touch/r+rf+rsp/seed0
-"""
 
 #: command -> (module with ``main(argv, prog)``, one-line description); ``None``: the hydra app.
 COMMANDS: dict[str, tuple[str | None, str]] = {
@@ -39,19 +23,13 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
 
 
 def run_train(argv: Sequence[str]) -> None:
-    """Run the hydra app with ``argv`` as its command line (help: task choices, then hydra's)."""
-    if not TRAIN_SCRIPT.is_file():
-        raise SystemExit(
-            f"gentlerl train runs {TRAIN_SCRIPT}, which this install does not have: install "
-            "gentlerl from its source tree (pip install -e .)"
-        )
-    if any(a in ("-h", "--help") for a in argv):
-        print(TRAIN_HELP)
-        argv = ["--help"]
+    """Run the hydra app (``gentlerl-train``) with ``argv`` as its command line."""
+    from gentlerl.training import cli
+
     saved = sys.argv
     sys.argv = ["gentlerl train", *argv]
     try:
-        runpy.run_path(str(TRAIN_SCRIPT), run_name="__main__")
+        cli.main()
     finally:
         sys.argv = saved
 

@@ -2,7 +2,7 @@
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
 ``best_policy.pt``). The actor runs without exploration noise in the env its run trained on (its
-``env_kwargs``, so the same hand calibration), or on another task with ``--task`` or another
+``env.kwargs``, so the same hand calibration), or on another task with ``--task`` or another
 calibration with ``--calibration`` (docs/CALIBRATION.md). Prints the
 success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N).
 """
@@ -63,7 +63,7 @@ def evaluate_policy(
     if task is not None and task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
     cfg, actor = load_policy(path)
-    env_kwargs = dict(cfg.env_kwargs)
+    env_kwargs = dict(cfg.env.kwargs)
     if calibration is not None:
         env_kwargs["calibration"] = calibration
     env = make_eval_env(partial(make_env, task or cfg.task, **env_kwargs), seed)

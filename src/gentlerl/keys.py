@@ -34,13 +34,12 @@ PENALTY_SURPRISE = "penalty_surprise"  # [1] r^{sp}_t
 ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
 FORCE_PENALTY = "force_penalty"  # [1] r^F_t, total fingertip force penalty
 TORQUE_PENALTY = "torque_penalty"  # [1] r^tau_t, actuator effort penalty
-#: The curiosity rewards (not the task reward, not the impact penalty).
-INTRINSIC_REWARDS = (DYNAMICS_SURPRISE, PENALTY_SURPRISE, ICM_REWARD)
 
 # The dynamics model's three predicted feature groups (paper: one ensemble per group).
 DYNAMICS_FEATURES = (JOINT_POS, JOINT_VEL, TOUCH)
 
 # Written by the critics / D4PG loss.
 STATE_ACTION_VALUE_LOGITS = "state_action_value_logits"  # [..., K, num_atoms]
+STATE_ACTION_VALUE_ATOMS = "state_action_value_atoms"  # [..., K, num_atoms] each head's support
 PRIORITY = "td_error"  # [...] priority for the prioritised sampler
 NSTEP_TERMINATED = "nstep_terminated"  # terminated flag of an n-step window's last step

@@ -12,6 +12,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -28,9 +29,13 @@ class Run:
     config: dict
     scalars: dict[str, Series] = field(default_factory=dict)
 
+    def setting(self, group: str, name: str, default: Any = None) -> Any:
+        """``config[group][name]``, or ``config[name]`` in a run of the earlier flat config."""
+        return self.config.get(group, {}).get(name, self.config.get(name, default))
+
     @property
     def label(self) -> str:
-        lam2 = self.config.get("lam_prime", [None, None])[1]
+        lam2 = self.setting("gentleness", "lam_prime", [None, None])[1]
         uses_lam = "rsp" in self.config.get("variant", "")
         return f"{self.config.get('variant')}" + (f" (λ'₂={lam2:g})" if uses_lam else "")
 
@@ -98,7 +103,7 @@ def _after_warmup(run: Run, name: str) -> np.ndarray:
     variant; at CPU scale they are a large share of a short run, so statistics leave them out.
     """
     frames, values = run.scalars.get(name, (np.zeros(0), np.zeros(0)))
-    return values[frames > run.config.get("init_random_frames", 0)]
+    return values[frames > run.setting("collector", "init_random_frames", 0)]
 
 
 def max_impacts(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:

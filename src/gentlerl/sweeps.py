@@ -2,7 +2,7 @@
 
     gentlerl sweep recipes/sweeps/fig4_touch.yaml --workers 2 --out runs/sweeps --figures figs
 
-Each grid point becomes one ``python recipes/train.py key=value ...`` process with a
+Each grid point becomes one ``python -m gentlerl.training.cli key=value ...`` process with a
 deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resumable: a run whose
 ``DONE`` marker exists is skipped, one with a checkpoint is continued (``resume=true``). Grid points
 that differ only in ``lam_prime`` for a variant without penalty surprise are run once (the
@@ -25,7 +25,6 @@ from typing import Any
 
 import yaml
 
-from gentlerl.cli import TRAIN_SCRIPT
 from gentlerl.training.loop import DONE_MARKER
 
 
@@ -33,14 +32,15 @@ from gentlerl.training.loop import DONE_MARKER
 class GridRun:
     overrides: tuple[tuple[str, Any], ...]
     run_dir: Path
-    #: The recipe script; None: recipes/train.py of the gentlerl that runs :meth:`command`
-    #: (on a Ray cluster, the worker node's checkout).
+    #: A recipe script to run instead of the installed ``gentlerl-train`` app (on a Ray
+    #: cluster, None runs the worker node's installed gentlerl).
     script: Path | None = None
 
     def command(self, extra: Sequence[str] = ()) -> list[str]:
         args = [f"{k}={_format(v)}" for k, v in self.overrides]
-        script = str(self.script or TRAIN_SCRIPT)
-        return [sys.executable, script, *args, *extra, f"run_dir={self.run_dir}"]
+        # None: the installed app, wherever gentlerl is installed (no path to recipes/).
+        app = [str(self.script)] if self.script else ["-m", "gentlerl.training.cli"]
+        return [sys.executable, *app, *args, *extra, f"run_dir={self.run_dir}"]
 
 
 def _format(value: Any) -> str:
@@ -80,13 +80,13 @@ def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
     for values in itertools.product(*(grid[n] for n in names)):
         point = dict(zip(names, values, strict=True))
         if "rsp" not in str(point.get("variant", "rsp")):
-            point.pop("lam_prime", None)
+            point.pop("gentleness.lam_prime", None)
         key = tuple(point.items())
         if repr(key) in seen:
             continue
         seen.add(repr(key))
         # No commas, brackets or '=' in the directory name: hydra would parse them in run_dir=...
-        name = "_".join(f"{k}-{_slug(v)}" for k, v in key)
+        name = "_".join(f"{k.rsplit('.', 1)[-1]}-{_slug(v)}" for k, v in key)
         runs.append(GridRun(key, out / name))
     return runs
 
@@ -137,7 +137,10 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
         "--scale", default=None, choices=("cpu", "paper"), help="added to every run as scale=..."
     )
     parser.add_argument(
-        "--set", action="append", default=[], help="extra override, e.g. total_frames=30000"
+        "--set",
+        action="append",
+        default=[],
+        help="extra override, e.g. collector.total_frames=30000",
     )
     parser.add_argument("--dry-run", action="store_true", help="print the commands only")
     parser.add_argument(

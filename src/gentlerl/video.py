@@ -198,7 +198,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
             f"{args.fps} and {args.size}"
         )
     cfg, actor = load_policy(args.checkpoint)
-    env = make_env(cfg.task, seed=args.seed, **cfg.env_kwargs)
+    env = make_env(cfg.task, seed=args.seed, **cfg.env.kwargs)
     try:
         frames = record_rollouts(env, actor, args.episodes, args.size, panel=not args.no_panel)
         print(write_video(frames, args.out, fps=args.fps))

@@ -3,8 +3,10 @@
 from gentlerl.data.prioritized import FlatPriorityTree, TorchPrioritizedSampler
 from gentlerl.data.replay import (
     NStepTerminated,
+    NStepWriter,
     make_beta_scheduler,
     make_model_buffer,
+    make_nstep_transform,
     make_replay_buffer,
 )
 
@@ -12,7 +14,9 @@ __all__ = [
     "FlatPriorityTree",
     "TorchPrioritizedSampler",
     "NStepTerminated",
+    "NStepWriter",
     "make_beta_scheduler",
     "make_model_buffer",
+    "make_nstep_transform",
     "make_replay_buffer",
 ]

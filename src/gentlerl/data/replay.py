@@ -11,6 +11,7 @@ step, and the loss reads that key (``loss.set_keys(terminated=keys.NSTEP_TERMINA
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 
 from tensordict import TensorDictBase
 from torchrl.data import (
@@ -46,7 +47,7 @@ def make_replay_buffer(
     prioritized: bool = True,
     alpha: float = 0.6,
     beta: float = 0.4,
-    n_steps: int = 5,
+    n_steps: int | None = 5,
     gamma: float = 0.99,
     reward_keys: Sequence[str] = (keys.REWARD,),
     device: str = "cpu",
@@ -58,13 +59,16 @@ def make_replay_buffer(
         batch_size: transitions per sample (paper: 256).
         prioritized: TorchRL's ``PrioritizedSampler`` logic (:class:`TorchPrioritizedSampler`) (priorities ``|td_error|^alpha``, importance
             weights with exponent ``beta``, see :func:`make_beta_scheduler`); uniform otherwise.
-        n_steps, gamma: n-step returns of every key in ``reward_keys`` (Acme D4PG: n = 5, 0.99).
+        n_steps, gamma: n-step returns of every key in ``reward_keys`` (Acme D4PG: n = 5, 0.99);
+            ``n_steps=None``: the buffer stores what it is given (write through an
+            :class:`NStepWriter`, which handles ``[B, T]`` batches and checkpoints its tail).
         device: storage device.
 
     Write with ``rb.extend(batch)`` where ``batch`` is ``[T]`` or ``[B, T]`` time-contiguous
     (a collector batch); the last ``n_steps`` of each write wait for the next one.
     """
-    for name, value in (("capacity", capacity), ("batch_size", batch_size), ("n_steps", n_steps)):
+    sizes = (("capacity", capacity), ("batch_size", batch_size), ("n_steps", n_steps or 1))
+    for name, value in sizes:
         if int(value) < 1:
             raise ValueError(f"{name} must be >= 1, got {value}")
     if not 0.0 <= gamma <= 1.0:
@@ -76,10 +80,7 @@ def make_replay_buffer(
         if prioritized
         else RandomSampler()
     )
-    # Compose inverts in reverse order: NStepTerminated runs before MultiStepTransform on write.
-    transform = Compose(
-        MultiStepTransform(n_steps, gamma, reward_keys=list(reward_keys)), NStepTerminated()
-    )
+    transform = None if n_steps is None else make_nstep_transform(n_steps, gamma, reward_keys)
     return TensorDictReplayBuffer(
         storage=LazyTensorStorage(capacity, device=device),
         sampler=sampler,
@@ -87,6 +88,55 @@ def make_replay_buffer(
         transform=transform,
         batch_size=batch_size,
     )
+
+
+def make_nstep_transform(n_steps: int, gamma: float, reward_keys: Sequence[str]) -> Compose:
+    """``MultiStepTransform`` after :class:`NStepTerminated` (Compose inverts in reverse order)."""
+    return Compose(
+        MultiStepTransform(n_steps, gamma, reward_keys=list(reward_keys)), NStepTerminated()
+    )
+
+
+class NStepWriter:
+    """Writes time-contiguous batches (``[T]``, or ``[B, T]``: B envs) as n-step transitions.
+
+    TorchRL's ``MultiStepTransform`` computes the windows along the last (time) dim, keeping the
+    last ``n_steps`` of each row for the next write; the flat buffer then gets the rows' ready
+    transitions in order. :attr:`tail` (those last steps) is what a checkpoint needs to continue.
+    """
+
+    def __init__(
+        self, rb: TensorDictReplayBuffer, n_steps: int, gamma: float, reward_keys: Sequence[str]
+    ) -> None:
+        if rb.transform is not None and len(rb.transform):
+            raise ValueError("NStepWriter needs a buffer without transforms (n_steps=None)")
+        self.rb, self.n_steps = rb, n_steps
+        self._make_transform = partial(make_nstep_transform, n_steps, gamma, list(reward_keys))
+        self.transform = self._make_transform()
+        self.tail: TensorDictBase | None = None
+
+    def extend(self, batch: TensorDictBase) -> None:
+        self.tail = batch[..., -self.n_steps :].clone()
+        ready = self.transform.inv(batch)
+        if ready is not None:
+            self.rb.extend(ready.reshape(-1))
+
+    def state_dict(self) -> dict[str, TensorDictBase | None]:
+        return {"tail": self.tail}
+
+    def load_state_dict(self, state: dict[str, TensorDictBase | None]) -> None:
+        """Continue after ``state["tail"]``, each row's last step marked truncated.
+
+        The resumed collector starts new episodes, so the episodes running at checkpoint time end
+        there: their pending transitions bootstrap from that step (as a time limit would), none
+        lost and none summed across the cut. Writing the tail alone only primes the transform.
+        """
+        self.transform, self.tail = self._make_transform(), None
+        if state["tail"] is not None:
+            tail = state["tail"].clone()
+            for key in (keys.DONE, keys.TRUNCATED):
+                tail.get(("next", key))[..., -1, :] = True
+            self.extend(tail)
 
 
 def make_model_buffer(

@@ -16,6 +16,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from gentlerl import keys
+from gentlerl.functional import categorical_support
 from gentlerl.models.actor import _check_sizes
 from gentlerl.models.layers import HeadLayerNorm, HeadLinear
 
@@ -26,7 +27,12 @@ class FusedCritic(nn.Module):
     Per head: ``Linear(obs+act, h0) -> LayerNorm -> tanh -> [Linear -> ELU]* -> Linear(num_atoms)``
     (paper: 400-300 hidden units, 101 atoms on [-100, 100]).
 
-    ``forward(observation, action)`` returns logits ``[..., num_heads, num_atoms]``.
+    The critic owns its support (as Acme's D4PG networks): head k's atoms are
+    ``num_atoms`` points from ``v_min[k]`` to ``v_max[k]``; ``v_min`` / ``v_max`` are a float for
+    every head or one value per head, e.g. ``v_max=0`` for a reward that is never positive.
+
+    ``forward(observation, action)`` returns ``(logits, atoms)``, both ``[..., num_heads, num_atoms]``
+    (``atoms`` is an expanded view of :attr:`support`).
     """
 
     def __init__(
@@ -36,11 +42,19 @@ class FusedCritic(nn.Module):
         num_heads: int,
         hidden: Sequence[int] = (400, 300),
         num_atoms: int = 101,
+        v_min: float | Sequence[float] = -100.0,
+        v_max: float | Sequence[float] = 100.0,
     ) -> None:
         super().__init__()
         _check_sizes(obs_dim=obs_dim, action_dim=action_dim, num_heads=num_heads, hidden=hidden)
         if num_atoms < 2:
             raise ValueError(f"num_atoms must be >= 2, got {num_atoms}")
+        bounds = [_per_head(v, num_heads, name) for v, name in ((v_min, "v_min"), (v_max, "v_max"))]
+        if not all(lo < hi for lo, hi in zip(*bounds, strict=True)):
+            raise ValueError(f"need v_min < v_max for every head, got v_min={v_min}, v_max={v_max}")
+        # Plain attributes, not buffers: the support is set by the config, never learned, copied
+        # to a target network or saved.
+        self.v_min, self.v_max = tuple(bounds[0]), tuple(bounds[1])
         self.num_heads = num_heads
         self.num_atoms = num_atoms
         widths = [obs_dim + action_dim, *hidden]
@@ -48,7 +62,15 @@ class FusedCritic(nn.Module):
         self.norm = HeadLayerNorm(num_heads, hidden[0])
         self.head = HeadLinear(num_heads, hidden[-1], num_atoms)
 
-    def forward(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+    @property
+    def support(self) -> torch.Tensor:
+        """``[num_heads, num_atoms]``: the atoms of each head."""
+        v_min, v_max = torch.tensor(self.v_min), torch.tensor(self.v_max)
+        return categorical_support(v_min, v_max, self.num_atoms)
+
+    def forward(
+        self, observation: torch.Tensor, action: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([observation, action], -1)
         batch_shape = x.shape[:-1]
         # [B, in] -> [K, B, in]: an expanded view, no copy.
@@ -57,7 +79,18 @@ class FusedCritic(nn.Module):
         for layer in self.layers[1:]:
             h = nn.functional.elu(layer(h))
         logits = self.head(h)  # [K, B, atoms]
-        return logits.transpose(0, 1).reshape(*batch_shape, self.num_heads, self.num_atoms)
+        logits = logits.transpose(0, 1).reshape(*batch_shape, self.num_heads, self.num_atoms)
+        return logits, self.support.to(logits).expand_as(logits)
+
+
+def _per_head(value: float | Sequence[float], num_heads: int, name: str) -> list[float]:
+    """``value`` for each of ``num_heads`` heads (a float is shared by all of them)."""
+    if isinstance(value, int | float):
+        return [float(value)] * num_heads
+    values = [float(v) for v in value]
+    if len(values) != num_heads:
+        raise ValueError(f"{name}={list(value)} needs one value per head ({num_heads} heads)")
+    return values
 
 
 def make_critic(
@@ -66,11 +99,14 @@ def make_critic(
     num_heads: int,
     hidden: Sequence[int] = (400, 300),
     num_atoms: int = 101,
+    v_min: float | Sequence[float] = -100.0,
+    v_max: float | Sequence[float] = 100.0,
     *,
     obs_key: str = keys.OBSERVATION,
     action_key: str = keys.ACTION,
-    out_key: str = keys.STATE_ACTION_VALUE_LOGITS,
+    out_keys: Sequence[str] = (keys.STATE_ACTION_VALUE_LOGITS, keys.STATE_ACTION_VALUE_ATOMS),
 ) -> TensorDictModule:
-    """A :class:`FusedCritic` reading ``observation`` and ``action``, writing ``[..., K, atoms]`` logits."""
-    critic = FusedCritic(obs_dim, action_dim, num_heads, hidden, num_atoms)
-    return TensorDictModule(critic, in_keys=[obs_key, action_key], out_keys=[out_key])
+    """A :class:`FusedCritic` reading ``observation`` and ``action``, writing ``[..., K, atoms]``
+    logits and atoms (the support of each head, from ``v_min`` to ``v_max``)."""
+    critic = FusedCritic(obs_dim, action_dim, num_heads, hidden, num_atoms, v_min, v_max)
+    return TensorDictModule(critic, in_keys=[obs_key, action_key], out_keys=list(out_keys))

@@ -5,8 +5,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import torch
+from tensordict import TensorDictBase
 from torch import nn
 
+from gentlerl import keys
 from gentlerl.models.actor import _check_sizes
 
 
@@ -28,9 +30,17 @@ class ICMModel(nn.Module):
     """
 
     def __init__(
-        self, obs_dim: int, action_dim: int, feature_dim: int = 64, hidden: int = 128
+        self,
+        obs_dim: int,
+        action_dim: int,
+        feature_dim: int = 64,
+        hidden: int = 128,
+        *,
+        obs_key: str = keys.OBSERVATION,
+        action_key: str = keys.ACTION,
     ) -> None:
         super().__init__()
+        self.obs_key, self.action_key = obs_key, action_key
         _check_sizes(obs_dim=obs_dim, action_dim=action_dim, feature_dim=feature_dim, hidden=hidden)
         self.encoder = _mlp([obs_dim, hidden, feature_dim])
         self.inverse = _mlp([2 * feature_dim, hidden, action_dim])
@@ -44,3 +54,8 @@ class ICMModel(nn.Module):
         predicted_action = torch.tanh(self.inverse(torch.cat([phi, next_phi], -1)))
         predicted_next = self.forward_model(torch.cat([phi, action], -1))
         return predicted_action, predicted_next, next_phi
+
+    def predict(self, td: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`forward` on a transition's ``obs_key``, ``action_key`` and ``("next", obs_key)``."""
+        obs, action = td.get(self.obs_key), td.get(self.action_key)
+        return self(obs, action, td.get(("next", self.obs_key)))

@@ -11,7 +11,6 @@ from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.objectives.common import LossModule
 
-from gentlerl import keys
 from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
 from gentlerl.models.icm import ICMModel
 
@@ -98,32 +97,22 @@ class ICMLoss(LossModule):
     model_params: TensorDictBase
     target_model_params: TensorDictBase
 
-    def __init__(
-        self,
-        model: ICMModel,
-        *,
-        beta: float = 0.2,
-        obs_key: str = keys.OBSERVATION,
-        action_key: str = keys.ACTION,
-    ) -> None:
+    def __init__(self, model: ICMModel, *, beta: float = 0.2) -> None:
         super().__init__()
         if not 0.0 <= beta <= 1.0:
             raise ValueError(f"beta must be in [0, 1], got {beta}")
-        self.beta, self.obs_key, self.action_key = beta, obs_key, action_key
+        self.beta = beta
         self.convert_to_functional(model, "model", create_target_params=False)
 
     def predict(
         self, tensordict: TensorDictBase
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        obs = tensordict.get(self.obs_key)
         with self.model_params.to_module(self.model, preserve_module_state=False):
-            return self.model(
-                obs, tensordict.get(self.action_key), tensordict.get(("next", self.obs_key))
-            )
+            return self.model.predict(tensordict)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         predicted_action, predicted_next, next_phi = self.predict(tensordict)
-        inverse = nn.functional.mse_loss(predicted_action, tensordict.get(self.action_key))
+        inverse = nn.functional.mse_loss(predicted_action, tensordict.get(self.model.action_key))
         forward = 0.5 * (predicted_next - next_phi.detach()).pow(2).sum(-1).mean()
         return TensorDict(
             {

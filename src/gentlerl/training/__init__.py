@@ -1,4 +1,4 @@
-"""Training: config, the shared loop, checkpoints, logging, evaluation."""
+"""Training: config, the shared loop (a runner of :mod:`gentlerl.agent`), checkpoints, logging."""
 
 from gentlerl.training.checkpoint import load_checkpoint, load_policy, save_checkpoint
 from gentlerl.training.config import SCALES, TrainConfig, make_config, validate

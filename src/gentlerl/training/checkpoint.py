@@ -150,13 +150,13 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
     ``path`` is a run's ``checkpoint.pt`` (the last actor) or ``best_policy.pt`` (the actor of its
     best evaluation).
 
-    Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env_kwargs)``.
+    Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env.kwargs)``.
     """
     state = load_checkpoint(path)
     missing = [k for k in ("config", "obs_dim", "action_dim", "actor") if k not in state]
     if missing:
         raise CheckpointError(f"{path} is not a gentlerl policy file: it lacks {missing}")
     cfg = make_config(**state["config"])
-    actor = make_actor(state["obs_dim"], state["action_dim"], cfg.actor_hidden)
+    actor = make_actor(state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
     actor.load_state_dict(state["actor"])
     return cfg, actor.eval()

@@ -1,231 +1,281 @@
-"""One dataclass for every hyper-parameter of a run, two scales, and up-front validation."""
+"""Every hyper-parameter of a run, in groups, each documented once; presets; up-front validation.
+
+A field's one-line ``help`` (and its ``choices``) is what ``gentlerl-train --help`` prints.
+Defaults are the ``cpu`` scale; :data:`~gentlerl.training.presets.SCALES` holds the presets,
+applied under user overrides.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from gentlerl.transforms.stack import VARIANTS
+from gentlerl.training.presets import SCALES
 
-TASK_NAMES = ("explore", "touch", "fragile")
 COLLECTORS = ("single", "multi")
 WANDB_MODES = ("offline", "online", "disabled")
 
 
+def _task_names() -> list[str]:
+    from gentlerl.envs import TASKS
+
+    return list(TASKS)
+
+
+def _variant_names() -> list[str]:
+    from gentlerl.agent.variants import VARIANTS
+
+    return list(VARIANTS)
+
+
+def _scale_names() -> list[str]:
+    return list(SCALES)
+
+
+def _f(default: Any, help: str, choices: Callable[[], list[str]] | tuple | None = None) -> Any:
+    """A field with its one-line help (and its valid choices) as metadata."""
+    meta = {"help": help, "choices": choices}
+    if isinstance(default, dict | list):
+        return field(default_factory=lambda: type(default)(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class EnvConfig:
+    kwargs: dict[str, Any] = _f({}, "keyword arguments of make_env, e.g. {time_limit: 100}")
+
+
+@dataclass
+class CollectorConfig:
+    kind: str = _f("single", "one process, or num_workers synchronous processes", COLLECTORS)
+    num_workers: int = _f(2, "env processes of the multi collector")
+    num_envs: int = _f(1, "hands stepped together per collector env (BatchedHandEnv)")
+    env_threads: int | None = _f(None, "physics threads of a batched env (null: 1 per hand)")
+    overlap: bool = _f(False, "collect the next batch on a thread while the learner trains")
+    total_frames: int = _f(100_000, "env steps of the whole run")
+    frames_per_batch: int = _f(200, "env steps per collector batch")
+    init_random_frames: int = _f(10_000, "uniform random actions first (~1 % of them succeed)")
+    sigma: float = _f(0.3, "std of the Gaussian exploration noise on actions in [-1, 1]")
+
+
+@dataclass
+class ReplayConfig:
+    buffer_size: int = _f(200_000, "n-step transitions kept")
+    batch_size: int = _f(128, "transitions per learner update")
+    n_steps: int = _f(5, "n of the n-step return")
+    prioritized: bool = _f(True, "prioritised replay on the critic loss, else uniform")
+    alpha: float = _f(0.6, "priority exponent")
+    beta: float = _f(0.4, "initial importance-weight exponent, annealed to 1")
+
+
+@dataclass
+class LearnerConfig:
+    utd_ratio: float = _f(0.25, "learner (and model) updates per env step")
+    lr_actor: float = _f(1e-4, "Adam step size of the actor")
+    lr_critic: float = _f(3e-4, "Adam step size of the critics")
+    gamma: float = _f(0.99, "discount per env step")
+    target_update_period: int = _f(100, "updates between hard target-network copies")
+    policy_noise: float = _f(0.0, "TD3 target policy smoothing std (0: D4PG)")
+    episodic_intrinsic: bool = _f(False, "cut the curiosity heads' bootstrap at termination too")
+
+
+@dataclass
+class NetworkConfig:
+    actor_hidden: tuple[int, ...] = _f((256, 256), "hidden layer sizes of the actor")
+    critic_hidden: tuple[int, ...] = _f((256, 256), "hidden layer sizes of each critic")
+    num_atoms: int = _f(101, "atoms of each critic head's categorical support")
+    v_min: float = _f(-10.0, "bottom of every head's support")
+    v_max: float = _f(10.0, "top of every head's support")
+    bounded_support: bool = _f(True, "cap a head's v_max at its reward's bound (0 for penalties)")
+
+
+@dataclass
+class GentlenessConfig:
+    lam: tuple[float, float] = _f((2.0, 2.0), "impact acceptability [lambda_1, lambda_2] (eq. 3)")
+    lam_prime: tuple[float, float] = _f((2.0, 2.0), "penalty-surprise gate [l'_1, l'_2] (eq. 8)")
+    reward_delay: int = _f(2_000, "model updates before the curiosity rewards switch on")
+    dynamics_target_period: int = _f(500, "model updates between dynamics target copies")
+    penalty_target_period: int = _f(100, "model updates between penalty target copies")
+    ensemble_size: int = _f(5, "members of each model ensemble")
+    model_hidden: int = _f(128, "units of each of the models' 3 hidden layers")
+    model_batch_size: int = _f(64, "transitions per ensemble member and model update")
+    model_buffer_size: int = _f(100_000, "1-step transitions kept for the models")
+    lr_model: float = _f(1e-3, "Adam step size of the models")
+    surprise_scale: float = _f(1.0, "multiplies the surprise rewards")
+    surprise_nll_floor: float | None = _f(0.0, "floor of the penalty-surprise NLL (null: eq. 8)")
+    icm_eta: float = _f(1.0, "scale eta of the ICM reward")
+
+
+@dataclass
+class LoggingConfig:
+    eval_every_frames: int = _f(5_000, "env steps between evaluations")
+    eval_episodes: int = _f(10, "noise-free episodes per evaluation")
+    log_every_updates: int = _f(200, "updates averaged into one row of train/ scalars")
+    checkpoint_every_frames: int = _f(10_000, "env steps between checkpoints")
+    wandb_mode: str = _f("offline", "wandb logging (CSV is always written)", WANDB_MODES)
+    wandb_project: str = _f("gentlerl", "wandb project")
+    progress: bool = _f(True, "show a progress bar")
+
+
+GROUPS = {
+    "env": EnvConfig,
+    "collector": CollectorConfig,
+    "replay": ReplayConfig,
+    "learner": LearnerConfig,
+    "network": NetworkConfig,
+    "gentleness": GentlenessConfig,
+    "logging": LoggingConfig,
+}
+
+
 @dataclass
 class TrainConfig:
-    """A training run. Defaults are the ``cpu`` scale; :data:`SCALES` lists the presets.
+    """A training run: what it is (task, variant, seed, scale), where it goes, and its groups."""
 
-    Given by the paper (``scale="paper"``): batch 256, buffer 1M, lr 1e-4, 500k steps, reward
-    delay 20k, dynamics / penalty target periods 5k / 1k, actor 300-200, critics 400-300, 101 atoms
-    on [-100, 100], ensembles of 5 x (3 x 128). Not given by the paper (D4PG / Acme defaults, our
-    choice at both scales): n-step 5, gamma 0.99, exploration sigma 0.3.
-    """
-
-    task: str = "touch"
-    variant: str = "r+rf+rsp"
-    seed: int = 0
-    scale: str = "cpu"
-    # Collection.
-    total_frames: int = 100_000
-    frames_per_batch: int = 200
-    init_random_frames: int = 10_000  # ~50 random episodes: ~1 % of them succeed
-    collector: str = "single"
-    num_workers: int = 2
-    # Hands stepped together in each collector env (gentlerl.envs.BatchedHandEnv; a batch is then
-    # [num_envs, frames_per_batch / num_envs]), their physics on env_threads threads (None: one per
-    # hand, at most one per core). 1: one plain HandEnv.
-    num_envs: int = 1
-    env_threads: int | None = None
-    # Collect the next batch on a thread while the learner trains on this one (collector=single;
-    # the collection policy lags one batch behind the learner, deterministically).
-    overlap: bool = False
-    sigma: float = 0.3
-    env_kwargs: dict[str, Any] = field(default_factory=dict)
-    # Learner.
-    batch_size: int = 128
-    buffer_size: int = 200_000
-    utd_ratio: float = 0.25
-    # The paper's actor rate. 3e-4 let the actor exploit the critics' errors: the default recipe
-    # learned touch and then lost it on 2 of 3 seeds (measured, docs/REPRODUCTION.md).
-    lr_actor: float = 1e-4
-    lr_critic: float = 3e-4
-    actor_hidden: tuple[int, ...] = (256, 256)
-    critic_hidden: tuple[int, ...] = (256, 256)
-    num_atoms: int = 101
-    # CPU scale: a [-10, 10] support (atoms 0.2 apart) resolves the +1 task reward; on the paper's
-    # [-100, 100] (atoms 2 apart) the touch policy kept collapsing (measured, see README).
-    v_min: float = -10.0
-    v_max: float = 10.0
-    # Top of the impact-penalty critic's support (None: v_max, as in the paper). The penalty is
-    # never positive (eq. 4), so 0 is its true bound; it stops that critic over-estimating (measured:
-    # on [-10, 10] its mean value reached +3.3 while the actor lost the task, docs/REPRODUCTION.md).
-    penalty_v_max: float | None = 0.0
-    n_steps: int = 5
-    gamma: float = 0.99
-    target_update_period: int = 100
-    # TD3 target policy smoothing (MultiHeadD4PGLoss policy_noise); 0 = D4PG as published.
-    policy_noise: float = 0.0
-    prioritized: bool = True
-    alpha: float = 0.6
-    beta: float = 0.4
-    # Gentleness rewards and their models.
-    lam: tuple[float, float] = (2.0, 2.0)
-    lam_prime: tuple[float, float] = (2.0, 2.0)
-    reward_delay: int = 2_000
-    dynamics_target_period: int = 500
-    penalty_target_period: int = 100
-    ensemble_size: int = 5
-    model_hidden: int = 128
-    model_batch_size: int = 64
-    model_buffer_size: int = 100_000
-    lr_model: float = 1e-3
-    surprise_scale: float = 1.0
-    # Floor of the penalty-surprise NLL (None = the paper's eq. 8 as written; see PenaltySurprise).
-    # 0 at CPU scale: without it r+rf+rsp collapsed after each success (measured, see README).
-    surprise_nll_floor: float | None = 0.0
-    icm_eta: float = 1.0
-    # False: intrinsic critics (surprise, ICM) bootstrap through termination, as RND does
-    # (MultiHeadD4PGLoss non_episodic_keys), so succeeding does not cost the curiosity stream.
-    # Episodic heads let r+rf+rsp farm surprise instead of finishing (measured, docs/REPRODUCTION.md);
-    # the paper scale keeps every head episodic (the paper's D4PG).
-    episodic_intrinsic: bool = False
-    # Evaluation, logging, checkpoints.
-    eval_every_frames: int = 5_000
-    eval_episodes: int = 10
-    log_every_updates: int = 200
-    checkpoint_every_frames: int = 10_000
-    run_dir: str = "runs/default"
-    resume: bool = False
-    wandb_mode: str = "offline"
-    wandb_project: str = "gentlerl"
-    num_threads: int = 1  # one thread: on 2 cores the env and other processes need the other
-    progress: bool = True
+    task: str = _f("touch", "the env task", _task_names)
+    variant: str = _f("r+rf+rsp", "reward components, one critic head each", _variant_names)
+    seed: int = _f(0, "seeds torch, numpy, python, the envs and the models")
+    scale: str = _f("cpu", "preset applied under the overrides", _scale_names)
+    run_dir: str = _f("runs/default", "where the run writes everything")
+    resume: bool = _f(False, "continue the run in run_dir from its checkpoint")
+    num_threads: int = _f(1, "torch threads (the env and workers need the other cores)")
+    env: EnvConfig = field(default_factory=EnvConfig)
+    collector: CollectorConfig = field(default_factory=CollectorConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    gentleness: GentlenessConfig = field(default_factory=GentlenessConfig)
+    logging: LoggingConfig = field(default_factory=LoggingConfig)
 
     @property
     def reward_keys(self) -> list[str]:
-        return list(VARIANTS[self.variant])
+        from gentlerl.agent.variants import reward_keys
+
+        return reward_keys(self.variant)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
 
-#: Presets; user overrides are applied on top of them by :func:`make_config`.
-SCALES: dict[str, dict[str, Any]] = {
-    "cpu": {},
-    "paper": {
-        "total_frames": 500_000,
-        "init_random_frames": 10_000,
-        "v_min": -100.0,
-        "v_max": 100.0,
-        "surprise_nll_floor": None,
-        "penalty_v_max": None,
-        "episodic_intrinsic": True,
-        "batch_size": 256,
-        "buffer_size": 1_000_000,
-        "utd_ratio": 1.0,
-        "lr_actor": 1e-4,
-        "lr_critic": 1e-4,
-        "actor_hidden": (300, 200),
-        "critic_hidden": (400, 300),
-        "reward_delay": 20_000,
-        "dynamics_target_period": 5_000,
-        "penalty_target_period": 1_000,
-        "model_batch_size": 256,
-        "model_buffer_size": 1_000_000,
-        "eval_every_frames": 25_000,
-        "checkpoint_every_frames": 50_000,
-    },
-}
-# The paper's real-robot runs: its hyper-parameters, but 25,000 training steps, lr 1e-3 (one order
-# of magnitude up for the shorter run) and the intrinsic rewards on after 8,000 training steps
-# (Huang et al. 2019, "Real robot experiments"). Not in the paper: 2,500 random frames (10 % of
-# the run; the paper scale's 10,000 would be 40 % of it), and an evaluation and a checkpoint
-# every 2,500 frames (a hardware run can stop at any time).
-SCALES["real"] = {
-    **SCALES["paper"],
-    "total_frames": 25_000,
-    "init_random_frames": 2_500,
-    "lr_actor": 1e-3,
-    "lr_critic": 1e-3,
-    "reward_delay": 8_000,
-    "eval_every_frames": 2_500,
-    "checkpoint_every_frames": 2_500,
-}
+def iter_fields() -> Iterator[tuple[str, dataclasses.Field]]:
+    """``("group.name" or "name", field)`` for every leaf field of :class:`TrainConfig`."""
+    for f in dataclasses.fields(TrainConfig):
+        if f.name in GROUPS:
+            for sub in dataclasses.fields(GROUPS[f.name]):
+                yield f"{f.name}.{sub.name}", sub
+        else:
+            yield f.name, f
+
+
+def _merge(base: dict[str, Any], update: dict[str, Any], where: str = "") -> None:
+    """Merge ``update`` into ``base`` in place; unknown names raise (listing the valid ones)."""
+    for name, value in update.items():
+        if name not in base:
+            raise ValueError(
+                f"unknown config field {where}{name!r}; valid fields: {sorted(base)}"
+                if where
+                else f"unknown config field(s) [{name!r}]; valid fields: {sorted(base)}"
+            )
+        if isinstance(base[name], dict) and name in GROUPS and not where:
+            if not isinstance(value, dict):
+                raise ValueError(f"config group {name!r} takes a mapping, got {value!r}")
+            _merge(base[name], value, f"{name}.")
+        else:
+            base[name] = value
 
 
 def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
-    """The ``scale`` preset with ``overrides`` on top, validated."""
+    """The ``scale`` preset with ``overrides`` on top, validated.
+
+    Overrides are top-level fields or groups given as (partial) mappings:
+    ``make_config("paper", seed=1, replay={"batch_size": 64})``.
+    """
     if scale not in SCALES:
         raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
-    names = {f.name for f in dataclasses.fields(TrainConfig)}
-    unknown = sorted(set(overrides) - names)
-    if unknown:
-        raise ValueError(f"unknown config field(s) {unknown}; valid fields: {sorted(names)}")
-    values = {**SCALES[scale], **overrides, "scale": scale}
-    for name in ("actor_hidden", "critic_hidden", "lam", "lam_prime"):
-        if name in values:
-            values[name] = tuple(values[name])
-    if "env_kwargs" in values:
-        values["env_kwargs"] = dict(values["env_kwargs"])
-    cfg = TrainConfig(**values)
+    values = TrainConfig().to_dict()
+    _merge(values, SCALES[scale])
+    _merge(values, {**overrides, "scale": scale})
+    groups = {}
+    for name, cls in GROUPS.items():
+        group = dict(values.pop(name))
+        for f in dataclasses.fields(cls):
+            if isinstance(f.default, tuple) and group[f.name] is not None:
+                group[f.name] = tuple(group[f.name])
+        groups[name] = cls(**group)
+    cfg = TrainConfig(**values, **groups)
     validate(cfg)
     return cfg
+
+
+def get(cfg: TrainConfig, name: str) -> Any:
+    """The value of ``"group.field"`` (or a top-level ``"field"``)."""
+    value: Any = cfg
+    for part in name.split("."):
+        value = getattr(value, part)
+    return value
+
+
+_POSITIVE = (
+    "collector.total_frames collector.frames_per_batch collector.num_workers collector.num_envs "
+    "replay.batch_size "
+    "replay.buffer_size replay.n_steps network.num_atoms learner.target_update_period "
+    "gentleness.dynamics_target_period gentleness.penalty_target_period gentleness.ensemble_size "
+    "gentleness.model_hidden gentleness.model_batch_size gentleness.model_buffer_size "
+    "logging.eval_every_frames logging.log_every_updates logging.checkpoint_every_frames "
+    "num_threads"
+).split()
+_NON_NEGATIVE = (
+    "collector.init_random_frames gentleness.reward_delay logging.eval_episodes collector.sigma "
+    "learner.policy_noise learner.utd_ratio gentleness.surprise_scale gentleness.icm_eta"
+).split()
 
 
 def validate(cfg: TrainConfig) -> None:
     """Raise one ``ValueError`` listing every problem, before anything starts."""
     problems = []
-    if cfg.task not in TASK_NAMES:
-        problems.append(f"task={cfg.task!r} is not one of {list(TASK_NAMES)}")
-    if cfg.variant not in VARIANTS:
-        problems.append(f"variant={cfg.variant!r} is not one of {sorted(VARIANTS)}")
-    if cfg.collector not in COLLECTORS:
-        problems.append(f"collector={cfg.collector!r} is not one of {list(COLLECTORS)}")
-    if cfg.wandb_mode not in WANDB_MODES:
-        problems.append(f"wandb_mode={cfg.wandb_mode!r} is not one of {list(WANDB_MODES)}")
-    positive = (
-        "total_frames frames_per_batch num_workers num_envs batch_size buffer_size num_atoms n_steps "
-        "target_update_period dynamics_target_period penalty_target_period ensemble_size "
-        "model_hidden model_batch_size model_buffer_size eval_every_frames log_every_updates "
-        "checkpoint_every_frames num_threads"
-    ).split()
-    for name in positive:
-        if getattr(cfg, name) < 1:
-            problems.append(f"{name}={getattr(cfg, name)} must be >= 1")
-    non_negative = (
-        "init_random_frames reward_delay eval_episodes sigma policy_noise utd_ratio surprise_scale "
-        "icm_eta"
-    )
-    for name in non_negative.split():
-        if not getattr(cfg, name) >= 0:
-            problems.append(f"{name}={getattr(cfg, name)} must be >= 0")
-    if cfg.overlap and cfg.collector != "single":
-        problems.append(f"overlap=true needs collector='single', got collector={cfg.collector!r}")
-    if cfg.env_threads is not None and cfg.env_threads < 1:
-        problems.append(f"env_threads={cfg.env_threads} must be >= 1 (or None: one per hand)")
-    if cfg.num_envs >= 1 and cfg.frames_per_batch % cfg.num_envs:
-        problems.append(
-            f"frames_per_batch={cfg.frames_per_batch} must be a multiple of num_envs={cfg.num_envs}"
-        )
-    for name in ("lr_actor", "lr_critic", "lr_model"):
-        if not getattr(cfg, name) > 0:
-            problems.append(f"{name}={getattr(cfg, name)} must be > 0")
-    for name in ("actor_hidden", "critic_hidden"):
-        if not getattr(cfg, name) or min(getattr(cfg, name)) < 1:
-            problems.append(f"{name}={getattr(cfg, name)} must be a non-empty list of sizes >= 1")
-    for name in ("lam", "lam_prime"):
-        value = getattr(cfg, name)
+    for name, f in iter_fields():
+        choices = f.metadata.get("choices")
+        if choices is not None:
+            valid = list(choices() if callable(choices) else choices)
+            if get(cfg, name) not in valid:
+                problems.append(f"{name}={get(cfg, name)!r} is not one of {valid}")
+    for name in _POSITIVE:
+        if get(cfg, name) < 1:
+            problems.append(f"{name}={get(cfg, name)} must be >= 1")
+    for name in _NON_NEGATIVE:
+        if not get(cfg, name) >= 0:
+            problems.append(f"{name}={get(cfg, name)} must be >= 0")
+    for name in ("learner.lr_actor", "learner.lr_critic", "gentleness.lr_model"):
+        if not get(cfg, name) > 0:
+            problems.append(f"{name}={get(cfg, name)} must be > 0")
+    for name in ("network.actor_hidden", "network.critic_hidden"):
+        if not get(cfg, name) or min(get(cfg, name)) < 1:
+            problems.append(f"{name}={get(cfg, name)} must be a non-empty list of sizes >= 1")
+    for name in ("gentleness.lam", "gentleness.lam_prime"):
+        value = get(cfg, name)
         if len(value) != 2 or value[0] <= 0 or value[1] < 0:
             problems.append(f"{name}={value} must be [lambda_1 > 0, lambda_2 >= 0]")
-    if not 0.0 < cfg.gamma <= 1.0:
-        problems.append(f"gamma={cfg.gamma} must be in (0, 1]")
-    if not cfg.v_min < cfg.v_max:
-        problems.append(f"v_min={cfg.v_min} must be < v_max={cfg.v_max}")
-    if cfg.penalty_v_max is not None and not cfg.v_min < cfg.penalty_v_max:
-        problems.append(f"penalty_v_max={cfg.penalty_v_max} must be > v_min={cfg.v_min}")
-    if not 0.0 <= cfg.alpha <= 1.0 or not 0.0 <= cfg.beta <= 1.0:
-        problems.append(f"alpha={cfg.alpha} and beta={cfg.beta} must be in [0, 1]")
+    if not 0.0 < cfg.learner.gamma <= 1.0:
+        problems.append(f"learner.gamma={cfg.learner.gamma} must be in (0, 1]")
+    net = cfg.network
+    if not net.v_min < net.v_max:
+        problems.append(f"network.v_min={net.v_min} must be < network.v_max={net.v_max}")
+    if net.bounded_support and not net.v_min < 0:
+        problems.append(f"network.v_min={net.v_min} must be < 0 with bounded_support (v_max 0)")
+    col = cfg.collector
+    if col.overlap and col.kind != "single":
+        problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")
+    if col.env_threads is not None and col.env_threads < 1:
+        problems.append(f"collector.env_threads={col.env_threads} must be >= 1 (or null)")
+    if col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
+        problems.append(
+            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
+            f"collector.num_envs={col.num_envs}"
+        )
+    replay = cfg.replay
+    if not 0.0 <= replay.alpha <= 1.0 or not 0.0 <= replay.beta <= 1.0:
+        problems.append(f"replay.alpha={replay.alpha} and beta={replay.beta} must be in [0, 1]")
     if problems:
         raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))

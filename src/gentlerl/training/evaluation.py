@@ -63,3 +63,9 @@ def evaluate(
         "return": sum(e["return"] for e in per_episode) / n,
     }
     return summary, per_episode
+
+
+def rank(result: dict[str, float]) -> tuple[float, float, float]:
+    """Order of evaluations: higher success rate, then lower broken rate, then lower mean max
+    impact (the gentler of two equally successful policies)."""
+    return (result["success_rate"], -result["broken_rate"], -result["max_impact_mean"])

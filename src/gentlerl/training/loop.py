@@ -1,43 +1,34 @@
-"""The one training loop shared by every recipe.
+"""The one training loop shared by every recipe: a thin runner over the agent's builder.
 
-collect -> reward transforms -> buffers -> (model updates -> target copies / reward delay)
--> D4PG update -> target update -> log -> evaluate -> checkpoint.
-
-Two replay buffers, both fed from every collected batch after the reward transforms: the
-agent's prioritised buffer holds *n-step* transitions (``MultiStepTransform`` rewrites
-``("next", obs)`` to s_{t+n} and sums every reward component), while the dynamics / penalty / ICM
-models learn from *1-step* transitions (s_t, a_t, s_{t+1}, r^f_t), kept in a uniform buffer.
-Updates start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
+collect -> reward transforms -> buffers -> (model updates -> schedule) -> D4PG update -> log ->
+evaluate -> checkpoint. The models learn from 1-step transitions (:class:`IntrinsicRewards`), the
+learner from n-step ones (the prioritised buffer, written through an ``NStepWriter``). Updates
+start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
 """
 
 from __future__ import annotations
 
-import random
+import dataclasses
 import time
-from collections import defaultdict
+from collections import defaultdict, deque
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 import yaml
-from tensordict import TensorDictBase
-from torchrl.envs.transforms import MultiStepTransform
+from torchrl import timeit
 from tqdm.auto import tqdm
 
-from gentlerl import keys
-from gentlerl.objectives import EnsembleModelLoss
+from gentlerl.agent.builder import AgentBuilder
+from gentlerl.agent.learner import TrainingState
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
     check_env_keys,
     default_env_factory,
-    make_buffers,
     make_collector,
     make_eval_env,
-    make_exploration,
-    make_learner,
-    make_reward_stack,
 )
 from gentlerl.training.checkpoint import (
     load_checkpoint,
@@ -47,33 +38,14 @@ from gentlerl.training.checkpoint import (
     save_checkpoint,
 )
 from gentlerl.training.config import TrainConfig, validate
-from gentlerl.training.evaluation import evaluate
+from gentlerl.training.evaluation import evaluate, rank
 from gentlerl.training.logging import EpisodeTracker, RunLogger
+from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
 
 CHECKPOINT = "checkpoint.pt"
 #: The actor of the best evaluation so far (see :meth:`Trainer._keep_best`); ``load_policy`` reads it.
 BEST_POLICY = "best_policy.pt"
 DONE_MARKER = "DONE"
-
-
-def seed_everything(seed: int) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
-
-
-def _rng_state() -> dict[str, Any]:
-    return {
-        "python": random.getstate(),
-        "numpy": np.random.get_state(),
-        "torch": torch.get_rng_state(),
-    }
-
-
-def _set_rng_state(state: dict[str, Any]) -> None:
-    random.setstate(state["python"])
-    np.random.set_state(state["numpy"])
-    torch.set_rng_state(state["torch"])
 
 
 class Trainer:
@@ -88,130 +60,22 @@ class Trainer:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = self.env_factory()
-        self.obs_dim = probe.observation_spec[keys.OBSERVATION].shape[-1]
-        self.action_dim = probe.action_spec.shape[-1]
+        self.builder = AgentBuilder(cfg, probe)
         self.max_steps = int(getattr(probe, "time_limit", 1000))
-        self.stack = make_reward_stack(cfg, self.obs_dim, self.action_dim)
-        check_env_keys(probe, self.stack)
+        self.rewards = self.builder.make_intrinsic_rewards()
+        check_env_keys(probe, self.rewards)
         probe.close()
-        self.learner = make_learner(cfg, self.obs_dim, self.action_dim)
-        self.model_optims = {
-            name: torch.optim.Adam(loss.parameters(), lr=cfg.lr_model)
-            for name, loss in self.stack.model_losses.items()
-        }
-        self.total_updates = int(cfg.utd_ratio * max(cfg.total_frames - cfg.init_random_frames, 0))
-        self.rb, self.beta_schedule, self.model_rb = make_buffers(cfg, self.total_updates)
+        self.learner = self.builder.make_learner()
+        col = cfg.collector
+        updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
+        self.writer, self.rb, self.beta_schedule = self.builder.make_replay(updates)
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
-        self.nstep_tails: list[TensorDictBase | None] = []  # one per env (collector row)
         self.eval_history: list[dict[str, float]] = []
         self.best_eval: dict[str, float] | None = None
 
-    # -- state ---------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, Any]:
-        return {
-            **self._policy_state(),
-            "loss": self.learner.loss.state_dict(),
-            "actor_optim": self.learner.actor_optim.state_dict(),
-            "critic_optim": self.learner.critic_optim.state_dict(),
-            "target_counter": self.learner.target_updater.counter,
-            "stack": self.stack.state_dict(),
-            "model_optims": {k: o.state_dict() for k, o in self.model_optims.items()},
-            "rb": replay_buffer_state(self.rb),
-            "nstep_tails": list(self.nstep_tails),
-            "model_rb": replay_buffer_state(self.model_rb),
-            "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
-            "counters": dict(self.counters),
-            "eval_history": list(self.eval_history),
-            "best_eval": self.best_eval,
-            "rng": _rng_state(),
-        }
-
-    def _policy_state(self) -> dict[str, Any]:
-        """What :func:`~gentlerl.training.checkpoint.load_policy` reads: config, sizes, actor."""
-        return {
-            "config": self.cfg.to_dict(),
-            "obs_dim": self.obs_dim,
-            "action_dim": self.action_dim,
-            "actor": self.learner.actor.state_dict(),
-        }
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.learner.loss.load_state_dict(state["loss"])
-        self.learner.actor_optim.load_state_dict(state["actor_optim"])
-        self.learner.critic_optim.load_state_dict(state["critic_optim"])
-        self.learner.target_updater.counter = state["target_counter"]
-        self.stack.load_state_dict(state["stack"])
-        for k, o in self.model_optims.items():
-            o.load_state_dict(state["model_optims"][k])
-        load_replay_buffer_state(self.rb, state["rb"])
-        self.nstep_tails = [_cut(tail) for tail in state["nstep_tails"]]
-        load_replay_buffer_state(self.model_rb, state["model_rb"])
-        if self.beta_schedule is not None:
-            self.beta_schedule.load_state_dict(state["beta_schedule"])
-        self.counters = dict(state["counters"])
-        self.eval_history = list(state["eval_history"])
-        self.best_eval = state.get("best_eval")  # absent in checkpoints from before it existed
-        _set_rng_state(state["rng"])
-
-    def _extend_agent_buffer(self, batch: TensorDictBase) -> None:
-        """Write each env's time row through the n-step transform with that env's pending tail.
-
-        ``MultiStepTransform`` keeps one tail of pending steps and the storage is flat, so a
-        ``[num_workers, T]`` batch is written row by row, swapping the tails.
-        """
-        nstep = next(t for t in self.rb.transform if isinstance(t, MultiStepTransform))
-        rows = batch.unbind(0) if batch.ndim == 2 else (batch,)
-        if len(self.nstep_tails) != len(rows):
-            self.nstep_tails = [None] * len(rows)
-        for i, row in enumerate(rows):
-            nstep._buffer = self.nstep_tails[i]
-            self.rb.extend(row)
-            self.nstep_tails[i] = nstep._buffer
-
-    def save(self) -> None:
-        save_checkpoint(self.run_dir / CHECKPOINT, self.state_dict())
-
-    # -- updates -------------------------------------------------------------------------
-    def _update_models(self) -> dict[str, float]:
-        metrics = {}
-        b = self.cfg.model_batch_size
-        for name, loss in self.stack.model_losses.items():
-            if isinstance(loss, EnsembleModelLoss):
-                e = loss.ensemble_size
-                batch = self.model_rb.sample(e * b).reshape(e, b)  # a bootstrap batch per member
-            else:
-                batch = self.model_rb.sample(b)
-            out = loss(batch)
-            total = sum(v for k, v in out.items() if k.startswith("loss_"))
-            self.model_optims[name].zero_grad()
-            total.backward()
-            self.model_optims[name].step()
-            metrics[f"model_{name}"] = total.item()
-        self.stack.step(self.counters["updates"] + 1)
-        return metrics
-
-    def _update_learner(self) -> dict[str, float]:
-        learner = self.learner
-        batch = self.rb.sample()
-        out = learner.loss(batch)
-        learner.actor_optim.zero_grad()
-        learner.critic_optim.zero_grad()
-        (out["loss_value"] + out["loss_actor"]).backward()  # disjoint parameters
-        learner.critic_optim.step()
-        learner.actor_optim.step()
-        learner.target_updater.step()
-        self.rb.update_tensordict_priority(batch)
-        if self.beta_schedule is not None:
-            self.beta_schedule.step()
-        metrics = {k: v.item() for k, v in out.items()}
-        for key in self.cfg.reward_keys:
-            metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
-        return metrics
-
     # -- the loop ------------------------------------------------------------------------
     def run(self) -> dict[str, float]:
-        cfg = self.cfg
-        ckpt = self.run_dir / CHECKPOINT
+        cfg, ckpt = self.cfg, self.run_dir / CHECKPOINT
         remove_stale_temp_files(self.run_dir)
         if cfg.resume and ckpt.exists():
             self.load_state_dict(load_checkpoint(ckpt))
@@ -220,14 +84,14 @@ class Trainer:
                 f"run_dir={str(self.run_dir)!r} already holds a run; pass resume=true to continue "
                 "it, or choose another run_dir"
             )
-        (self.run_dir / "config.yaml").write_text(yaml.safe_dump(_plain(cfg.to_dict())))
-        logger = RunLogger(self.run_dir, _plain(cfg.to_dict()), cfg.wandb_mode, cfg.wandb_project)
+        config = _plain(cfg.to_dict())
+        (self.run_dir / "config.yaml").write_text(yaml.safe_dump(config))
+        log = cfg.logging
+        logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project)
         logger.truncate_after(self.counters["frames"])
-        tracker = EpisodeTracker(cfg.reward_keys)
-        eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, cfg.eval_episodes)
-        frames_left = cfg.total_frames - self.counters["frames"]
-        if frames_left > 0:
-            self._collect(frames_left, logger, tracker, eval_env)
+        eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, log.eval_episodes)
+        if cfg.collector.total_frames > self.counters["frames"]:
+            self._collect(logger, eval_env)
         summary = self._evaluate(logger, eval_env)
         self.save()
         (self.run_dir / DONE_MARKER).write_text("done\n")
@@ -235,84 +99,99 @@ class Trainer:
         eval_env.close()
         return summary
 
-    def _collect(
-        self, frames_left: int, logger: RunLogger, tracker: EpisodeTracker, eval_env: Any
-    ) -> None:
-        cfg, c = self.cfg, self.counters
-        policy = make_exploration(self.learner, cfg, self.action_dim)
-        random_left = max(cfg.init_random_frames - c["frames"], 0)
+    def _collect(self, logger: RunLogger, eval_env: Any) -> None:
+        cfg, c, col = self.cfg, self.counters, self.cfg.collector
+        policy = self.builder.make_policy(self.learner)
+        random_left = max(col.init_random_frames - c["frames"], 0)
+        frames_left = col.total_frames - c["frames"]
         seed = cfg.seed + c["frames"]
-        collector = make_collector(cfg, self.env_factory, policy, frames_left, random_left, seed)
+        collector = make_collector(col, self.env_factory, policy, frames_left, random_left, seed)
         collector.set_seed(seed)
+        tracker, recent = EpisodeTracker(self.rewards.reward_keys), deque(maxlen=20)
         pending: dict[str, list[float]] = defaultdict(list)
-        recent: list[dict[str, float]] = []
-        next_eval = (c["frames"] // cfg.eval_every_frames + 1) * cfg.eval_every_frames
-        next_ckpt = (c["frames"] // cfg.checkpoint_every_frames + 1) * cfg.checkpoint_every_frames
-        bar = tqdm(
-            total=cfg.total_frames, initial=c["frames"], disable=not cfg.progress, unit="frame"
-        )
+        bar = tqdm(total=col.total_frames, initial=c["frames"], disable=not cfg.logging.progress)
         start, start_frames = time.perf_counter(), c["frames"]
-        update_time = 0.0
         for batch in collector:
-            batch = self.stack.transform(batch)
+            batch = self.rewards.transform(batch)
             c["frames"] += batch.numel()
             for ep in tracker.update(batch):
                 logger.log({f"episode/{k}": v for k, v in ep.items()}, c["frames"])
-                recent = (recent + [ep])[-20:]
-            self.model_rb.extend(
-                batch.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID), "collector").reshape(-1)
-            )
-            self._extend_agent_buffer(
-                batch.select(*AGENT_KEYS, *[("next", k) for k in cfg.reward_keys])
-            )
-            if c["frames"] > cfg.init_random_frames and len(self.rb) >= cfg.batch_size:
-                c["update_credit"] += cfg.utd_ratio * batch.numel()
-                update_start = time.perf_counter()
+                recent.append(ep)
+            self.rewards.extend(batch)
+            rewards = [("next", k) for k in self.rewards.reward_keys]
+            self.writer.extend(batch.select(*AGENT_KEYS, *rewards))
+            if c["frames"] > col.init_random_frames and len(self.rb) >= cfg.replay.batch_size:
+                c["update_credit"] += cfg.learner.utd_ratio * batch.numel()
                 while c["update_credit"] >= 1:
                     c["update_credit"] -= 1
-                    if self.stack.model_losses:
-                        for k, v in self._update_models().items():
-                            pending[k].append(v)
-                    for k, v in self._update_learner().items():
+                    for k, v in self.update().items():
                         pending[k].append(v)
-                    c["updates"] += 1
-                update_time += time.perf_counter() - update_start
-                if cfg.collector == "multi":
+                if col.kind == "multi":
                     collector.update_policy_weights_()
-            elapsed = time.perf_counter() - start
-            if pending and len(pending["loss_value"]) >= cfg.log_every_updates:
-                scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
-                scalars["train/intrinsic_on"] = float(self.stack.intrinsic_on)
-                # Model + learner updates per second of update time (collection excluded).
-                scalars["train/updates_per_s"] = len(pending["loss_value"]) / max(update_time, 1e-9)
-                logger.log(scalars, c["frames"])
-                pending.clear()
-                update_time = 0.0
-            fps = (c["frames"] - start_frames) / max(elapsed, 1e-9)
-            logger.log({"train/env_steps_per_s": fps}, c["frames"])
-            if c["frames"] >= next_eval:
-                self._evaluate(logger, eval_env)
-                next_eval += cfg.eval_every_frames
-            if c["frames"] >= next_ckpt:
-                self.save()
-                next_ckpt += cfg.checkpoint_every_frames
+            fps = (c["frames"] - start_frames) / max(time.perf_counter() - start, 1e-9)
+            self._report(logger, eval_env, pending, fps, batch.numel())
             bar.update(batch.numel())
-            bar.set_postfix(
-                fps=f"{fps:.0f}",
-                success=f"{np.mean([e['success'] for e in recent]) if recent else 0:.2f}",
-                max_impact=f"{np.mean([e['max_impact'] for e in recent]) if recent else 0:.2f}N",
-                eval=f"{self.eval_history[-1]['success_rate']:.2f}" if self.eval_history else "-",
-            )
+            bar.set_postfix(self._postfix(recent, fps))
         bar.close()
         collector.shutdown()
 
+    def update(self) -> dict[str, float]:
+        """One update: every model (then the rewards' schedule), then the D4PG learner."""
+        with timeit("update"):
+            metrics = self.rewards.update(self.counters["updates"] + 1)
+            batch = self.rb.sample()
+            out = self.learner.update(batch)
+            self.rb.update_tensordict_priority(batch)
+            if self.beta_schedule is not None:
+                self.beta_schedule.step()
+        self.counters["updates"] += 1
+        metrics.update({k: v.item() for k, v in out.items()})
+        for key in self.rewards.reward_keys:
+            metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
+        return metrics
+
+    def _report(
+        self,
+        logger: RunLogger,
+        eval_env: Any,
+        pending: dict[str, list[float]],
+        fps: float,
+        batch_frames: int,
+    ) -> None:
+        """Log averaged update metrics, env speed; evaluate and checkpoint when due."""
+        log, frames = self.cfg.logging, self.counters["frames"]
+        if pending and len(pending["loss_value"]) >= log.log_every_updates:
+            scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
+            scalars["train/intrinsic_on"] = float(self.rewards.intrinsic_on)
+            # Model + learner updates per second of update time (collection excluded).
+            scalars["train/updates_per_s"] = 1.0 / max(timeit.todict()["update"], 1e-9)
+            logger.log(scalars, frames)
+            pending.clear()
+            timeit.erase()
+        logger.log({"train/env_steps_per_s": fps}, frames)
+        if _crossed(frames, batch_frames, log.eval_every_frames):
+            self._evaluate(logger, eval_env)
+        if _crossed(frames, batch_frames, log.checkpoint_every_frames):
+            self.save()
+
+    def _postfix(self, recent: deque, fps: float) -> dict[str, str]:
+        def mean(name: str) -> float:
+            return float(np.mean([e[name] for e in recent])) if recent else 0.0
+
+        last = self.eval_history[-1]["success_rate"] if self.eval_history else None
+        return {
+            "fps": f"{fps:.0f}",
+            "success": f"{mean('success'):.2f}",
+            "max_impact": f"{mean('max_impact'):.2f}N",
+            "eval": "-" if last is None else f"{last:.2f}",
+        }
+
     def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
-        summary, episodes = evaluate(
-            eval_env, self.learner.actor, self.cfg.eval_episodes, self.max_steps
-        )
+        episodes = self.cfg.logging.eval_episodes
+        summary, per_episode = evaluate(eval_env, self.learner.actor, episodes, self.max_steps)
         frames = self.counters["frames"]
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
-        logger.log_eval_episodes(frames, episodes)
+        logger.log_eval_episodes(frames, per_episode)
         self.eval_history.append({"frames": frames, **summary})
         self._keep_best({"frames": frames, **summary})
         return summary
@@ -320,42 +199,69 @@ class Trainer:
     def _keep_best(self, result: dict[str, float]) -> None:
         """Save the actor to :data:`BEST_POLICY` when this evaluation beats every earlier one.
 
-        Order: higher success rate, then lower broken rate, then lower mean max impact (the
-        gentler of two equally successful policies). DDPG policies can lose a solved task later
-        in training (docs/REPRODUCTION.md), so the best one is kept apart from the last one.
+        DDPG policies can lose a solved task later in training (docs/REPRODUCTION.md), so the
+        best one (:func:`~gentlerl.training.evaluation.rank`) is kept apart from the last one.
         """
-
-        def rank(r: dict[str, float]) -> tuple[float, float, float]:
-            return (r["success_rate"], -r["broken_rate"], -r["max_impact_mean"])
-
         if self.best_eval is not None and rank(result) <= rank(self.best_eval):
             return
         self.best_eval = dict(result)
-        save_checkpoint(
-            self.run_dir / BEST_POLICY, {**self._policy_state(), "eval": self.best_eval}
-        )
+        state = {**self._policy_state(), "eval": self.best_eval}
+        save_checkpoint(self.run_dir / BEST_POLICY, state)
+
+    # -- state ---------------------------------------------------------------------------
+    def _policy_state(self) -> dict[str, Any]:
+        """What :func:`~gentlerl.training.checkpoint.load_policy` reads: config, sizes, actor."""
+        return {
+            "config": self.cfg.to_dict(),
+            "obs_dim": self.builder.obs_dim,
+            "action_dim": self.builder.action_dim,
+            "actor": self.learner.actor.state_dict(),
+        }
+
+    def state_dict(self) -> dict[str, Any]:
+        buffer = self.rewards.buffer
+        return {
+            **self._policy_state(),
+            "learner": dataclasses.asdict(self.learner.state),
+            "intrinsic": self.rewards.state_dict(),
+            "rb": replay_buffer_state(self.rb),
+            "nstep": self.writer.state_dict(),
+            "model_rb": replay_buffer_state(buffer) if buffer is not None else None,
+            "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
+            "counters": dict(self.counters),
+            "eval_history": list(self.eval_history),
+            "best_eval": self.best_eval,
+            "rng": rng_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.learner.restore(TrainingState(**state["learner"]))
+        self.rewards.load_state_dict(state["intrinsic"])
+        load_replay_buffer_state(self.rb, state["rb"])
+        self.writer.load_state_dict(state["nstep"])
+        if self.rewards.buffer is not None:
+            load_replay_buffer_state(self.rewards.buffer, state["model_rb"])
+        if self.beta_schedule is not None:
+            self.beta_schedule.load_state_dict(state["beta_schedule"])
+        self.counters = dict(state["counters"])
+        self.eval_history = list(state["eval_history"])
+        self.best_eval = state["best_eval"]
+        set_rng_state(state["rng"])
+
+    def save(self) -> None:
+        save_checkpoint(self.run_dir / CHECKPOINT, self.state_dict())
 
 
-def _cut(tail: TensorDictBase | None) -> TensorDictBase | None:
-    """Mark the last pending step of each n-step window as truncated.
-
-    The resumed collector starts new episodes, so the episodes running at checkpoint time end
-    there: their pending transitions are written with windows cut at that step (bootstrapping
-    from it, as a time limit would), none lost and none summed across the cut.
-    """
-    if tail is None:
-        return None
-    tail = tail.clone()
-    for key in (keys.DONE, keys.TRUNCATED):
-        tail.get(("next", key))[..., -1, :] = True
-    return tail
+def _crossed(frames: int, batch_frames: int, every: int) -> bool:
+    """Whether the last batch reached a multiple of ``every`` frames."""
+    return frames // every > (frames - batch_frames) // every
 
 
 def _plain(value: Any) -> Any:
     """Tuples to lists so the config dumps as plain YAML."""
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
+    if isinstance(value, list | tuple):
         return [_plain(v) for v in value]
     return value
 

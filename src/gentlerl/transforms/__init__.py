@@ -9,26 +9,25 @@ Each transform reads a transition's root entries (``s_t``, ``a_t``) and ``"next"
   ``("next", key)`` for every transition;
 - as a replay-buffer transform, at sample time (the rewards then use the *current* target model).
 
-gentlerl's training loop uses the second form: it applies :attr:`RewardStack.transform` to each
+gentlerl's training loop uses the second form: it applies :attr:`IntrinsicRewards.transform` to each
 collected batch *before* writing it to the n-step replay buffer, because TorchRL's
 ``MultiStepTransform`` sums every reward key over the n steps at write time, so the intrinsic
 rewards must already be in the transitions (they are computed with the target model of that
 moment, which the paper refreshes only every 5000 / 1000 model updates anyway).
 
-The model-owning transforms (``DynamicsSurprise``, ``PenaltySurprise``, ``ICMReward``) share their
-networks with a TorchRL ``LossModule`` (``EnsembleModelLoss`` / ``ICMLoss``), like TorchRL's
-``RNDTransform`` / ``RNDLoss`` pair: the loss trains the model, the transform reads it (and
-``Transform.clone`` keeps sharing it). Append them to the batched env (``TransformedEnv(
-ParallelEnv(...), stack.transform)``), not inside the workers: a worker process would hold a copy
-of the networks that the loss's updates never reach. :func:`make_reward_transforms` builds the
-whole stack for a paper variant.
+The model-reading transforms (``DynamicsSurprise``, ``PenaltySurprise``, ``ICMReward``) receive
+their model and the parameters to read it with, like TorchRL's ``RNDTransform``; the wiring
+(:mod:`gentlerl.agent`) hands the same model to the ``LossModule`` that trains it, so the
+transforms import no loss. ``Transform.clone`` keeps sharing the model. Append them to the
+batched env (``TransformedEnv(ParallelEnv(...), rewards.transform)``), not inside the workers: a
+worker process would hold a copy of the networks that the loss's updates never reach.
+:class:`gentlerl.agent.IntrinsicRewards` builds them for a paper variant.
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.calibration import TouchCalibration
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty
-from gentlerl.transforms.stack import HAND_FEATURES, VARIANTS, RewardStack, make_reward_transforms
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
@@ -36,18 +35,14 @@ from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 ICM = ICMReward
 
 __all__ = [
-    "HAND_FEATURES",
     "ICM",
-    "VARIANTS",
     "DynamicsSurprise",
     "ForcePenalty",
     "ICMReward",
     "ImpactPenalty",
     "ModelRewardTransform",
     "PenaltySurprise",
-    "RewardStack",
     "TorquePenalty",
     "TouchCalibration",
     "TransitionTransform",
-    "make_reward_transforms",
 ]

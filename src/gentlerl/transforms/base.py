@@ -14,6 +14,8 @@ and are zero after a reset.
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from tensordict import TensorDictBase
 from torch import nn
@@ -76,21 +78,36 @@ class TransitionTransform(Transform):
 
 
 class ModelRewardTransform(TransitionTransform):
-    """A reward computed from a model that a ``LossModule`` owns and trains (RND-style pair).
+    """A reward computed from a model that a loss trains (the RND transform / loss pair).
 
-    The reward is multiplied by ``scale`` and by the :attr:`active` buffer, which stays ``False``
-    (reward 0) until the training loop switches it on after the reward delay.
+    Like TorchRL's ``RNDTransform``, it receives the model; it reads it with ``params`` (e.g. the
+    loss's target copy, which ``HardUpdate`` refreshes in place). The reward is multiplied by
+    ``scale`` and by the :attr:`active` buffer, which stays ``False`` (reward 0) until the
+    training loop switches it on after the reward delay.
     """
 
-    def __init__(self, loss: nn.Module, out_key: str, scale: float, in_keys: list) -> None:
+    def __init__(
+        self,
+        model: nn.Module,
+        params: TensorDictBase,
+        out_key: str,
+        scale: float,
+        in_keys: list,
+    ) -> None:
         if not scale >= 0:
             raise ValueError(f"scale must be >= 0, got {scale}")
         super().__init__(in_keys=in_keys, out_keys=[out_key])
         self.scalar_out_keys = (out_key,)
-        # A plain attribute, not a submodule: the loss owns (and checkpoints) the model.
-        self.__dict__["loss"] = loss
+        # Plain attributes, not submodules: the loss owns (and checkpoints) the model.
+        self.__dict__["model"] = model
+        self.__dict__["params"] = params
         self.scale = float(scale)
         self.register_buffer("active", torch.tensor(False))
+
+    def predict(self, tensordict: TensorDictBase) -> Any:
+        """``model.predict`` (or ``model(...)``) with :attr:`params`, without gradient."""
+        with torch.no_grad(), self.params.to_module(self.model, preserve_module_state=False):
+            return self.model.predict(tensordict)
 
     def _gate(self, reward: torch.Tensor) -> torch.Tensor:
         # A multiply, not a ``where``: NaN * 0 stays NaN, so a diverged model is seen (and stops

@@ -4,18 +4,22 @@ Each transform reads the target copy of the model owned by its
 :class:`~gentlerl.objectives.EnsembleModelLoss` (the RND-style transform/loss pair): the loss trains
 the model, the transform turns its predictions into a reward. Rewards are 0 until
 :attr:`active` is switched on (the paper's 20,000-step reward delay; see
-:class:`~gentlerl.transforms.RewardStack`).
+:class:`~gentlerl.agent.IntrinsicRewards`).
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
 
 from gentlerl import keys
 from gentlerl.functional import gaussian_nll, mixture_moments, penalty_surprise
-from gentlerl.objectives.models import EnsembleModelLoss
 from gentlerl.transforms.base import ModelRewardTransform
+
+if TYPE_CHECKING:  # the models are passed in; transforms import no model code
+    from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
 
 
 class DynamicsSurprise(ModelRewardTransform):
@@ -26,30 +30,30 @@ class DynamicsSurprise(ModelRewardTransform):
     :class:`~gentlerl.models.DynamicsModel` (paper: joint positions, velocities and touch).
 
     Args:
-        loss: the dynamics model's loss (holds the model and its target copy).
+        model: the dynamics ensemble.
+        params: its parameters to read: the target copy of its loss (``target_model_params``).
         scale: multiplies the reward (1 = the paper's equation).
     """
 
     def __init__(
         self,
-        loss: EnsembleModelLoss,
+        model: DynamicsModel,
+        params: TensorDictBase,
         *,
         scale: float = 1.0,
         out_key: str = keys.DYNAMICS_SURPRISE,
     ) -> None:
-        features = list(loss.model.feature_shapes)
-        super().__init__(
-            loss, out_key, scale, [loss.model.obs_key, loss.model.action_key, *features]
-        )
+        in_keys = [model.obs_key, model.action_key, *model.feature_shapes]
+        super().__init__(model, params, out_key, scale, in_keys)
 
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
     ) -> dict[str, torch.Tensor]:
-        predictions = self.loss.predict_target(tensordict)
+        predictions = self.predict(tensordict)
         total = 0.0
         for key, (mean, var) in predictions.items():
             mu, sigma2 = mixture_moments(mean, var, dim=0)
-            target = next_tensordict.get(key).flatten(-len(self.loss.model.feature_shapes[key]))
+            target = next_tensordict.get(key).flatten(-len(self.model.feature_shapes[key]))
             total = total + gaussian_nll(target, mu, sigma2).sum(-1, keepdim=True)
         return {self.out_keys[0]: self._gate(total)}
 
@@ -64,7 +68,8 @@ class PenaltySurprise(ModelRewardTransform):
     Reads ``("next", "penalty")``: put :class:`~gentlerl.transforms.ImpactPenalty` before it.
 
     Args:
-        loss: the penalty model's loss (holds the model and its target copy).
+        model: the penalty ensemble.
+        params: its parameters to read: the target copy of its loss (``target_model_params``).
         lam_prime: :math:`\lambda' = [\lambda'_1, \lambda'_2]` (paper: lambda'_1 = 2, lambda'_2 in 1..4).
         scale: multiplies the reward (1 = the paper's equation).
         nll_floor: if set, the NLL is clamped from below at this value before eq. 8. The paper's
@@ -75,7 +80,8 @@ class PenaltySurprise(ModelRewardTransform):
 
     def __init__(
         self,
-        loss: EnsembleModelLoss,
+        model: PenaltyModel,
+        params: TensorDictBase,
         *,
         lam_prime: tuple[float, float] = (2.0, 2.0),
         scale: float = 1.0,
@@ -85,9 +91,8 @@ class PenaltySurprise(ModelRewardTransform):
     ) -> None:
         if lam_prime[0] < 0:
             raise ValueError(f"lam_prime[0] (sigmoid steepness) must be >= 0, got {lam_prime}")
-        super().__init__(
-            loss, out_key, scale, [loss.model.obs_key, loss.model.action_key, penalty_key]
-        )
+        in_keys = [model.obs_key, model.action_key, penalty_key]
+        super().__init__(model, params, out_key, scale, in_keys)
         self.penalty_key = penalty_key
         self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
         self.nll_floor = nll_floor
@@ -100,7 +105,7 @@ class PenaltySurprise(ModelRewardTransform):
             raise KeyError(
                 f"PenaltySurprise needs ('next', {self.penalty_key!r}): append ImpactPenalty first"
             )
-        mean, var = self.loss.predict_target(tensordict)
+        mean, var = self.predict(tensordict)
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         nll = gaussian_nll(penalty, mu, sigma2)
         if self.nll_floor is not None:

@@ -1,0 +1,113 @@
+"""``AgentBuilder``: the agent's parts for a config and an env (Acme's D4PG builder).
+
+A runner (one process, a multi-process collector, later a distributed one) asks the builder for
+the policy it acts with, the learner it updates and the reward transform it applies; it never
+builds networks itself, so every runner trains the same agent.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import torch
+from torchrl.data import ReplayBuffer
+from torchrl.data.replay_buffers.scheduler import LinearScheduler
+from torchrl.envs import EnvBase
+
+from gentlerl import keys
+from gentlerl.agent.learner import Learner
+from gentlerl.agent.rewards import IntrinsicRewards
+from gentlerl.agent.variants import head_v_max, intrinsic_keys, reward_keys
+from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
+from gentlerl.models import make_actor, make_critic, make_exploration_policy
+from gentlerl.objectives import MultiHeadD4PGLoss
+
+if TYPE_CHECKING:
+    from gentlerl.training.config import TrainConfig
+
+
+class AgentBuilder:
+    """Makes the agent of ``cfg`` for ``env``, whose specs give every size.
+
+    Attributes:
+        obs_dim, action_dim: sizes of ``observation`` and ``action``.
+        feature_shapes: shape of each of the dynamics model's feature groups (joint positions,
+            velocities, touch) that the env writes.
+        reward_keys: the variant's reward components, in critic-head order.
+    """
+
+    def __init__(self, cfg: TrainConfig, env: EnvBase) -> None:
+        self.cfg = cfg
+        spec = env.observation_spec
+        batch_dims = len(env.batch_size)
+        self.obs_dim = spec[keys.OBSERVATION].shape[-1]
+        self.action_dim = env.action_spec.shape[-1]
+        self.feature_shapes = {
+            k: tuple(spec[k].shape[batch_dims:]) for k in keys.DYNAMICS_FEATURES if k in spec.keys()
+        }
+        self.reward_keys = reward_keys(cfg.variant)
+
+    def make_intrinsic_rewards(self) -> IntrinsicRewards:
+        return IntrinsicRewards(
+            self.cfg.variant,
+            self.cfg.gentleness,
+            obs_dim=self.obs_dim,
+            action_dim=self.action_dim,
+            feature_shapes=self.feature_shapes,
+            seed=self.cfg.seed,
+        )
+
+    def make_learner(self) -> Learner:
+        net, learner = self.cfg.network, self.cfg.learner
+        actor = make_actor(self.obs_dim, self.action_dim, net.actor_hidden)
+        critic = make_critic(
+            self.obs_dim,
+            self.action_dim,
+            len(self.reward_keys),
+            net.critic_hidden,
+            net.num_atoms,
+            v_min=net.v_min,
+            v_max=head_v_max(self.reward_keys, net.v_max, net.bounded_support),
+        )
+        loss = MultiHeadD4PGLoss(
+            actor,
+            critic,
+            reward_keys=self.reward_keys,
+            non_episodic_keys=[]
+            if learner.episodic_intrinsic
+            else intrinsic_keys(self.reward_keys),
+            policy_noise=learner.policy_noise,
+        )
+        loss.make_value_estimator(gamma=learner.gamma)
+        loss.set_keys(terminated=keys.NSTEP_TERMINATED)
+        return Learner(
+            loss,
+            lr_actor=learner.lr_actor,
+            lr_critic=learner.lr_critic,
+            target_update_period=learner.target_update_period,
+        )
+
+    def make_policy(self, learner: Learner) -> torch.nn.Module:
+        """The learner's actor with Gaussian exploration noise (``collector.sigma``)."""
+        return make_exploration_policy(
+            learner.actor, self.cfg.collector.sigma, action_dim=self.action_dim
+        )
+
+    def make_replay(
+        self, total_updates: int
+    ) -> tuple[NStepWriter, ReplayBuffer, LinearScheduler | None]:
+        """The agent's prioritised buffer, its n-step writer and its beta schedule."""
+        replay = self.cfg.replay
+        rb = make_replay_buffer(
+            replay.buffer_size,
+            replay.batch_size,
+            prioritized=replay.prioritized,
+            alpha=replay.alpha,
+            beta=replay.beta,
+            n_steps=None,
+        )
+        writer = NStepWriter(rb, replay.n_steps, self.cfg.learner.gamma, self.reward_keys)
+        schedule = (
+            make_beta_scheduler(rb, 1.0, max(total_updates, 1)) if replay.prioritized else None
+        )
+        return writer, rb, schedule

@@ -1,0 +1,153 @@
+"""The reward components (one critic head each) and the paper's variants that combine them.
+
+Adding a reward transform with its own critic head touches three places: its key in
+:mod:`gentlerl.keys`, its transform in :mod:`gentlerl.transforms`, and here an entry of
+:data:`COMPONENTS` (how to build it) and the :data:`VARIANTS` that use it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import torch
+from torchrl.envs.transforms import Transform
+from torchrl.objectives.common import LossModule
+
+from gentlerl import keys
+from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
+from gentlerl.objectives import EnsembleModelLoss, ICMLoss
+from gentlerl.transforms import DynamicsSurprise, ICMReward, PenaltySurprise
+
+if TYPE_CHECKING:
+    from gentlerl.training.config import GentlenessConfig
+
+
+@dataclass
+class Ingredients:
+    """What a component's builder may use: the env's sizes, the gentleness settings, a seed."""
+
+    obs_dim: int
+    action_dim: int
+    feature_shapes: Mapping[str, Sequence[int]]
+    settings: GentlenessConfig
+    seed: int
+
+
+@dataclass
+class Part:
+    """A built component: its transform and, for a learned reward, the loss training its model.
+
+    ``target_period``: model updates between hard copies of the loss's target parameters
+    (``None``: the transform reads the online model).
+    """
+
+    transform: Transform
+    loss: LossModule | None = None
+    target_period: int | None = None
+
+
+@dataclass(frozen=True)
+class Component:
+    """One reward component (one critic head).
+
+    Attributes:
+        build: makes its :class:`Part`; ``None`` where the env or ``ImpactPenalty`` writes it.
+        upper_bound: the reward never exceeds it (0 for penalties); with
+            ``network.bounded_support`` its critic's support tops there.
+        intrinsic: a curiosity reward: switched on after the reward delay, and its critic head
+            bootstraps through termination unless ``learner.episodic_intrinsic``.
+        model: the name of its model (``model_<name>`` in the logs).
+    """
+
+    build: Callable[[Ingredients], Part] | None = None
+    upper_bound: float | None = None
+    intrinsic: bool = False
+    model: str | None = None
+
+
+def _hidden(ing: Ingredients) -> tuple[int, int, int]:
+    return (ing.settings.model_hidden,) * 3
+
+
+def _dynamics_surprise(ing: Ingredients) -> Part:
+    model = DynamicsModel(
+        ing.obs_dim,
+        ing.action_dim,
+        dict(ing.feature_shapes),
+        ing.settings.ensemble_size,
+        _hidden(ing),
+        seed=ing.seed,
+    )
+    loss = EnsembleModelLoss(model, name="dynamics")
+    scale = ing.settings.surprise_scale
+    transform = DynamicsSurprise(model, loss.target_model_params, scale=scale)
+    return Part(transform, loss, ing.settings.dynamics_target_period)
+
+
+def _penalty_surprise(ing: Ingredients) -> Part:
+    s = ing.settings
+    model = PenaltyModel(
+        ing.obs_dim, ing.action_dim, s.ensemble_size, _hidden(ing), seed=ing.seed + 1
+    )
+    loss = EnsembleModelLoss(model, name="penalty")
+    transform = PenaltySurprise(
+        model,
+        loss.target_model_params,
+        lam_prime=s.lam_prime,
+        scale=s.surprise_scale,
+        nll_floor=s.surprise_nll_floor,
+    )
+    return Part(transform, loss, s.penalty_target_period)
+
+
+def _icm_reward(ing: Ingredients) -> Part:
+    with torch.random.fork_rng():
+        torch.manual_seed(ing.seed + 2)
+        model = ICMModel(ing.obs_dim, ing.action_dim)
+    loss = ICMLoss(model)
+    return Part(ICMReward(model, loss.model_params, eta=ing.settings.icm_eta), loss)
+
+
+#: Every reward component, by its key (= the name of its critic head).
+COMPONENTS: dict[str, Component] = {
+    keys.REWARD: Component(),
+    keys.PENALTY: Component(upper_bound=0.0),  # eq. 4: never positive; ImpactPenalty writes it
+    keys.DYNAMICS_SURPRISE: Component(_dynamics_surprise, intrinsic=True, model="dynamics"),
+    keys.PENALTY_SURPRISE: Component(_penalty_surprise, intrinsic=True, model="penalty"),
+    keys.ICM_REWARD: Component(_icm_reward, intrinsic=True, model="icm"),
+}
+
+#: Reward components (critic heads, in order) of each variant of the paper's experiments.
+VARIANTS: dict[str, tuple[str, ...]] = {
+    "r": (keys.REWARD,),
+    "r+rf": (keys.REWARD, keys.PENALTY),
+    "r+rf+rs": (keys.REWARD, keys.PENALTY, keys.DYNAMICS_SURPRISE),
+    "r+rf+rsp": (keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE),
+    "r+icm": (keys.REWARD, keys.ICM_REWARD),
+    "rs": (keys.DYNAMICS_SURPRISE,),
+    "rf+rs": (keys.PENALTY, keys.DYNAMICS_SURPRISE),
+    "rf+rsp": (keys.PENALTY, keys.PENALTY_SURPRISE),
+}
+
+
+def reward_keys(variant: str) -> list[str]:
+    """The reward components of ``variant``, in critic-head order."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
+    return list(VARIANTS[variant])
+
+
+def intrinsic_keys(reward_keys: Sequence[str]) -> list[str]:
+    """The curiosity rewards among ``reward_keys``."""
+    return [k for k in reward_keys if COMPONENTS[k].intrinsic]
+
+
+def head_v_max(reward_keys: Sequence[str], v_max: float, bounded: bool) -> list[float]:
+    """Top of each head's support: ``v_max``, capped at the reward's bound when ``bounded``."""
+    tops = []
+    for key in reward_keys:
+        bound = COMPONENTS[key].upper_bound
+        tops.append(min(v_max, bound) if bounded and bound is not None else v_max)
+    return tops

@@ -1,0 +1,111 @@
+"""``gentlerl-train``: the hydra app that trains one run (``recipes/train.py`` runs the same app).
+
+    gentlerl-train task=touch variant=r+rf+rsp seed=0
+    gentlerl-train scale=paper replay.batch_size=64 gentleness.lam_prime=[2,3]
+    gentlerl-train -m variant=r,r+rf+rsp seed=0,1,2     # a sweep, one run after the other
+    gentlerl-train --help                               # every field, its default and choices
+
+The config lives in the package (hydra's ``ConfigStore``): the schema is
+:class:`~gentlerl.training.TrainConfig`, ``scale=<name>`` applies a preset of
+:data:`~gentlerl.training.SCALES`, and every field is overridden as ``group.field=value``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import hydra
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from gentlerl.training.config import SCALES, TrainConfig, get, iter_fields, make_config
+
+#: Where a run goes unless ``run_dir=...`` is given.
+RUN_DIR = "runs/${task}/${variant}/seed${seed}"
+
+HELP = """gentlerl-train: train a gentle-manipulation agent (Huang et al. 2019) with TorchRL.
+
+Usage: gentlerl-train [field=value ...] [scale=cpu|paper|real] [-m sweep=a,b ...]
+Example: gentlerl-train task=fragile variant=r+rf+rsp gentleness.lam_prime=[2,1.5] seed=1
+
+Fields (default, then {choices}); run_dir defaults to runs/<task>/<variant>/seed<seed>:
+"""
+
+
+def describe() -> str:
+    """One line per field: ``name=default  help [choices]`` (what ``--help`` prints)."""
+    defaults = TrainConfig()
+    lines = []
+    for name, f in iter_fields():
+        choices = f.metadata.get("choices")
+        valid = f"  {{{', '.join(choices() if callable(choices) else choices)}}}" if choices else ""
+        value = get(defaults, name)
+        lines.append(f"  {name}={_override(value)}".ljust(42) + f" {f.metadata['help']}{valid}")
+    return "\n".join(lines)
+
+
+def _override(value: Any) -> str:
+    """``value`` as a hydra override writes it (``true``, ``null``, ``[2,3]``)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if value is None:
+        return "null"
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(_override(v) for v in value) + "]"
+    return str(value)
+
+
+def _help_template() -> str:
+    # OmegaConf would read "${" in the template as an interpolation.
+    return (HELP + describe() + "\n\nHydra flags:\n$FLAGS_HELP\n").replace("${", "\\${")
+
+
+def register_configs() -> None:
+    """Store the schema, the scale presets, the help page and the primary config."""
+    cs = ConfigStore.instance()
+    cs.store(name="train_schema", node=TrainConfig)
+    for name, preset in SCALES.items():
+        cs.store(group="scale", name=name, node={"scale": name, **preset}, package="_global_")
+    help_node = {"app_name": "gentlerl-train", "header": "", "footer": ""}
+    cs.store(group="hydra/help", name="gentlerl", node={**help_node, "template": _help_template()})
+    defaults: list[Any] = [
+        "train_schema",
+        {"scale": "cpu"},
+        "_self_",
+        {"override hydra/help": "gentlerl"},
+        {"override hydra/job_logging": "disabled"},
+        {"override hydra/hydra_logging": "disabled"},
+    ]
+    hydra_settings = {
+        "run": {"dir": "${run_dir}"},
+        "sweep": {"dir": "runs", "subdir": "${task}/${variant}/seed${seed}"},
+        "output_subdir": None,
+        "job": {"chdir": False},
+    }
+    node = {"defaults": defaults, "run_dir": RUN_DIR, "hydra": hydra_settings}
+    cs.store(name="gentlerl_train", node=node)
+
+
+def config_from_hydra(cfg: DictConfig) -> TrainConfig:
+    """The validated :class:`TrainConfig` of a composed hydra config."""
+    values = OmegaConf.to_container(cfg, resolve=True)
+    return make_config(**values)
+
+
+@hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
+def _app(cfg: DictConfig) -> dict[str, float]:
+    from gentlerl.training.loop import train
+
+    summary = train(config_from_hydra(cfg))
+    print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
+    return summary
+
+
+def main() -> None:
+    """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides."""
+    register_configs()
+    _app()
+
+
+if __name__ == "__main__":
+    main()
