@@ -1,4 +1,4 @@
-"""ForcePenalty and TorquePenalty: hand-computed rewards, specs, keys and bad arguments."""
+"""ForcePenalty and TorquePenalty: hand-computed rewards, specs, and their variants' critic heads."""
 
 import math
 
@@ -9,6 +9,9 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
+from gentlerl.agent import IntrinsicRewards
+from gentlerl.agent.variants import head_v_max, reward_keys
+from gentlerl.training.config import GentlenessConfig
 from gentlerl.transforms import ForcePenalty, TorquePenalty
 from tests.toy_env import ToyHandEnv
 
@@ -53,3 +56,27 @@ def test_custom_keys_batches_and_bad_arguments():
         ForcePenalty(in_keys=["a", "b"])
     with pytest.raises(ValueError, match="TorquePenalty lam"):
         TorquePenalty((-1.0, 1.0))
+
+
+@pytest.mark.parametrize(
+    ("variant", "key"), [("r+rf+rsp+rF", keys.FORCE_PENALTY), ("r+rf+rsp+rt", keys.TORQUE_PENALTY)]
+)
+def test_variants_add_their_head_and_run_on_the_hand_env(variant, key):
+    from gentlerl.envs import make_env
+
+    heads = [keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, key]
+    assert reward_keys(variant) == heads
+    # Never positive: with a bounded support the head's values stop at 0, like the impact penalty's.
+    assert head_v_max(heads, 10.0, bounded=True) == [10.0, 0.0, 10.0, 0.0]
+    settings = GentlenessConfig(model_hidden=16, ensemble_size=2, reward_delay=0)
+    features = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
+    rewards = IntrinsicRewards(
+        variant, settings, obs_dim=63, action_dim=20, feature_shapes=features
+    )
+    env = TransformedEnv(make_env("touch", seed=0), rewards.transform)
+    try:
+        check_env_specs(env)
+        rollout = env.rollout(5)
+    finally:
+        env.close()
+    assert rollout["next", key].shape == (5, 1) and (rollout["next", key] <= 0).all()

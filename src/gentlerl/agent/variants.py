@@ -18,7 +18,13 @@ from torchrl.objectives.common import LossModule
 from gentlerl import keys
 from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, ICMLoss
-from gentlerl.transforms import DynamicsSurprise, ICMReward, PenaltySurprise
+from gentlerl.transforms import (
+    DynamicsSurprise,
+    ForcePenalty,
+    ICMReward,
+    PenaltySurprise,
+    TorquePenalty,
+)
 
 if TYPE_CHECKING:
     from gentlerl.training.config import GentlenessConfig
@@ -117,6 +123,9 @@ COMPONENTS: dict[str, Component] = {
     keys.DYNAMICS_SURPRISE: Component(_dynamics_surprise, intrinsic=True, model="dynamics"),
     keys.PENALTY_SURPRISE: Component(_penalty_surprise, intrinsic=True, model="penalty"),
     keys.ICM_REWARD: Component(_icm_reward, intrinsic=True, model="icm"),
+    # Beyond the paper (its future work on wear): total fingertip force and actuator effort.
+    keys.FORCE_PENALTY: Component(lambda ing: Part(ForcePenalty()), upper_bound=0.0),
+    keys.TORQUE_PENALTY: Component(lambda ing: Part(TorquePenalty()), upper_bound=0.0),
 }
 
 #: Reward components (critic heads, in order) of each variant of the paper's experiments.
@@ -129,6 +138,9 @@ VARIANTS: dict[str, tuple[str, ...]] = {
     "rs": (keys.DYNAMICS_SURPRISE,),
     "rf+rs": (keys.PENALTY, keys.DYNAMICS_SURPRISE),
     "rf+rsp": (keys.PENALTY, keys.PENALTY_SURPRISE),
+    # The paper's method plus a wear penalty: rF total force, rt actuator effort (torque).
+    "r+rf+rsp+rF": (keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, keys.FORCE_PENALTY),
+    "r+rf+rsp+rt": (keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, keys.TORQUE_PENALTY),
 }
 
 
