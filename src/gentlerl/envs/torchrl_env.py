@@ -50,7 +50,7 @@ def hand_specs(
         obs[keys.PIXELS] = Bounded(0, 255, (pixel_size, pixel_size, 3), dtype=torch.uint8)
     return {
         "observation": Composite(obs),
-        "action": Bounded(-1.0, 1.0, (20,), device=device),
+        "action": Bounded(-1.0, 1.0, (N_ACTUATORS,), device=device),
         "reward": Unbounded((1,), device=device),
         "done": Composite(done=_flag(), terminated=_flag(), truncated=_flag()),
     }
