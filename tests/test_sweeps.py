@@ -18,8 +18,8 @@ TINY = [
 
 
 def test_paper_sweeps_expand_to_the_expected_grids(tmp_path):
-    # touch / fragile: 4 variants without penalty surprise + r+rf+rsp x 3 lambda'_2, x 3 seeds.
-    for name, n in (("fig4_touch", 21), ("fig4_fragile", 21), ("fig3_noreward_impacts", 15)):
+    # touch / fragile: 4 variants without penalty surprise + r+rf+rsp x 3 lambda'_2, x 5 seeds.
+    for name, n in (("fig4_touch", 35), ("fig4_fragile", 35), ("fig3_noreward_impacts", 15)):
         runs = expand(load_sweep(SWEEPS / f"{name}.yaml"), tmp_path)
         assert len(runs) == n
         assert len({r.run_dir for r in runs}) == n

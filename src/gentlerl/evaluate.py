@@ -93,7 +93,7 @@ def main(
         args.policy, args.episodes, task=args.task, calibration=args.calibration, seed=args.seed
     )
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps({"policy": str(args.policy), **result}))
     else:
         print(
             f"{args.policy} on {result['task']}, {result['episodes']} episodes (seed {args.seed}):\n"
