@@ -11,6 +11,7 @@ from gentlerl.training import SCALES, make_config
 from gentlerl.training.builders import check_env_keys, collection_env_factory
 from gentlerl.training.cli import config_from_hydra, describe, register_configs
 from gentlerl.training.config import GentlenessConfig, iter_fields
+from gentlerl.transforms import DynamicsSurprise
 from tests.toy_env import ToyHandEnv
 
 
@@ -170,3 +171,14 @@ def test_penalty_critic_support_tops_at_zero_at_cpu_scale(scale, v_max):
     critic = AgentBuilder(make_config(scale), ToyHandEnv()).make_learner().loss.value_network
     assert critic.module.v_max == v_max  # reward, penalty, penalty_surprise
     assert critic.module.v_min == (make_config(scale).network.v_min,) * 3
+
+
+@pytest.mark.parametrize(("scale", "factor"), [("cpu", 0.002), ("paper", 1.0), ("real", 1.0)])
+def test_dynamics_surprise_is_scaled_down_at_cpu_scale_only(scale, factor):
+    cfg = make_config(scale, variant="r+rf+rs", gentleness={"surprise_scale": 2.0})
+    rewards = IntrinsicRewards(
+        cfg.variant, cfg.gentleness, obs_dim=63, action_dim=20, feature_shapes={"joint_pos": (24,)}
+    )
+    (surprise,) = [t for t in rewards.transform if isinstance(t, DynamicsSurprise)]
+    assert cfg.gentleness.dynamics_surprise_scale == factor
+    assert surprise.scale == pytest.approx(2.0 * factor)

@@ -59,6 +59,7 @@ CONFIG = dict(
         model_buffer_size=100_000,
         lr_model=1e-3,
         surprise_scale=1.0,
+        dynamics_surprise_scale=1.0,
         surprise_nll_floor=0.0,
         icm_eta=1.0,
     ),

@@ -87,7 +87,7 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
         seed=ing.seed,
     )
     loss = EnsembleModelLoss(model, name="dynamics")
-    scale = ing.settings.surprise_scale
+    scale = ing.settings.surprise_scale * ing.settings.dynamics_surprise_scale
     transform = DynamicsSurprise(model, loss.target_model_params, scale=scale)
     return Part(transform, loss, ing.settings.dynamics_target_period)
 

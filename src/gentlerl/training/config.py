@@ -104,6 +104,10 @@ class GentlenessConfig:
     model_buffer_size: int = _f(100_000, "1-step transitions kept for the models")
     lr_model: float = _f(1e-3, "Adam step size of the models")
     surprise_scale: float = _f(1.0, "multiplies the surprise rewards")
+    # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
+    # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
+    # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
+    dynamics_surprise_scale: float = _f(0.002, "extra factor on the dynamics surprise r^s")
     surprise_nll_floor: float | None = _f(0.0, "floor of the penalty-surprise NLL (null: eq. 8)")
     icm_eta: float = _f(1.0, "scale eta of the ICM reward")
 
@@ -228,7 +232,8 @@ _POSITIVE = (
 ).split()
 _NON_NEGATIVE = (
     "collector.init_random_frames gentleness.reward_delay logging.eval_episodes collector.sigma "
-    "learner.policy_noise learner.utd_ratio gentleness.surprise_scale gentleness.icm_eta"
+    "learner.policy_noise learner.utd_ratio gentleness.surprise_scale "
+    "gentleness.dynamics_surprise_scale gentleness.icm_eta"
 ).split()
 
 
