@@ -114,7 +114,7 @@ def test_a_real_tiny_grid_on_ray_runs_and_resumes(local_ray, tmp_path):
     assert (runs[0].run_dir / "DONE").exists()
     # Interrupted after its last checkpoint (DONE gone): the task continues it to 600 frames.
     (runs[0].run_dir / "DONE").unlink()
-    longer = [o for o in TINY if not o.startswith("total_frames")] + ["total_frames=600"]
+    longer = [o for o in TINY if "total_frames" not in o] + ["collector.total_frames=600"]
     assert run_grid_on_ray(runs, longer)["done"] == 1
     success = runs[0].run_dir / "logs" / "scalars" / "eval" / "success_rate.csv"
     frames = [line.split(",")[0] for line in success.read_text().split()]

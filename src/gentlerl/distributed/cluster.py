@@ -59,6 +59,35 @@ def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
         ) from err
 
 
+def preflight(address: str | None) -> ModuleType:
+    """Ray, after checking that ``address`` answers (unless Ray already runs in this process)."""
+    ray = import_ray()
+    if not ray.is_initialized() and address not in (None, "auto"):
+        check_reachable(address)
+    return ray
+
+
+def no_cluster(address: str | None, err: Exception) -> ClusterError:
+    """The error for ``ray.init`` finding no cluster (``address="auto"`` with none running)."""
+    return ClusterError(
+        f"no Ray cluster found for address={address!r} ({err}); start one with "
+        "`ray start --head` (see docs/DISTRIBUTED.md)"
+    )
+
+
+def ray_init_config(address: str | None, num_cpus: float | None = None) -> dict[str, Any]:
+    """``ray.init`` arguments: a new local Ray with ``num_cpus`` CPUs, or join ``address``.
+
+    Worker output stays in Ray's logs (``/tmp/ray/session_latest/logs``); errors reach the
+    caller as exceptions carrying the worker's traceback.
+    """
+    common = {"include_dashboard": False, "log_to_driver": False}
+    if address is None:
+        # "local": a new Ray even when a `ray start` cluster runs here (that one needs "auto").
+        return {"address": "local", "num_cpus": num_cpus, **common}
+    return {"address": address, **common}
+
+
 @contextmanager
 def connect(
     address: str | None = None, num_cpus: int | None = None, **init_kwargs: Any
@@ -71,23 +100,14 @@ def connect(
     already initialised in this process is reused and left running. A Ray this call started or
     joined is shut down (disconnected) on exit, so a local one leaves no processes behind.
     """
-    ray = import_ray()
+    ray = preflight(address)
     if ray.is_initialized():
         yield ray
         return
-    if address not in (None, "auto"):
-        check_reachable(address)
-    kwargs: dict[str, Any] = {"include_dashboard": False, **init_kwargs}
-    if address is None:
-        # "local": a new Ray even when a `ray start` cluster runs here (that one needs "auto").
-        address, kwargs["num_cpus"] = "local", num_cpus
     try:
-        ray.init(address=address, **kwargs)
+        ray.init(**{**ray_init_config(address, num_cpus), **init_kwargs})
     except ConnectionError as err:
-        raise ClusterError(
-            f"no Ray cluster found for address={address!r} ({err}); start one with "
-            "`ray start --head` (see docs/DISTRIBUTED.md)"
-        ) from err
+        raise no_cluster(address, err) from err
     try:
         yield ray
     finally:

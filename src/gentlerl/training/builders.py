@@ -101,8 +101,9 @@ def make_collector(
     random_left: int,
     seed: int,
 ) -> Collector | MultiSyncCollector | PrefetchCollector:
-    """TorchRL ``Collector`` (one process) or ``MultiSyncCollector`` (``num_workers`` processes);
-    with ``cfg.overlap`` the single collector runs one batch ahead on a thread
+    """TorchRL ``Collector`` (one process), ``MultiSyncCollector`` (``num_workers`` processes) or
+    ``RayCollector`` (``num_workers`` Ray actors, :mod:`gentlerl.distributed.collector`); with
+    ``cfg.overlap`` the single collector runs one batch ahead on a thread
     (:class:`~gentlerl.training.prefetch.PrefetchCollector`).
 
     Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset, so the
@@ -128,6 +129,14 @@ def make_collector(
     if cfg.kind == "single":
         return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
     factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]
+    if cfg.kind == "ray":
+        from gentlerl.distributed.collector import make_ray_collector
+
+        return make_ray_collector(
+            factories, policy, frames_per_batch=cfg.frames_per_batch, total_frames=frames_left,
+            init_random_frames=random_left, address=cfg.ray_address,
+            cpus_per_worker=cfg.cpus_per_worker, memory_per_worker_gb=cfg.memory_per_worker_gb,
+        )  # fmt: skip
     return MultiSyncCollector(factories, policy, cat_results="stack", **common)
 
 

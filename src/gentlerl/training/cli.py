@@ -94,9 +94,13 @@ def config_from_hydra(cfg: DictConfig) -> TrainConfig:
 
 @hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
 def _app(cfg: DictConfig) -> dict[str, float]:
+    from gentlerl.distributed import ClusterError
     from gentlerl.training.loop import train
 
-    summary = train(config_from_hydra(cfg))
+    try:
+        summary = train(config_from_hydra(cfg))
+    except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
+        raise SystemExit(str(err)) from None
     print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
     return summary
 

@@ -14,7 +14,7 @@ from typing import Any
 
 from gentlerl.training.presets import SCALES
 
-COLLECTORS = ("single", "multi")
+COLLECTORS = ("single", "multi", "ray")
 WANDB_MODES = ("offline", "online", "disabled")
 
 
@@ -49,8 +49,16 @@ class EnvConfig:
 
 @dataclass
 class CollectorConfig:
-    kind: str = _f("single", "one process, or num_workers synchronous processes", COLLECTORS)
-    num_workers: int = _f(2, "env processes of the multi collector")
+    kind: str = _f(
+        "single", "one process, num_workers processes, or num_workers Ray actors", COLLECTORS
+    )
+    num_workers: int = _f(2, "env processes of the multi collector, Ray actors of the ray one")
+    ray_address: str | None = _f(
+        None, "ray: null starts a local Ray; auto, host:port or ray://host:port joins a cluster"
+    )
+    cpus_per_worker: float = _f(1.0, "ray: CPUs each remote collector reserves")
+    memory_per_worker_gb: float = _f(1.0, "ray: memory (GiB) each remote collector reserves")
+    weight_sync_every: int = _f(50, "ray: learner updates between weight pushes to the workers")
     num_envs: int = _f(1, "hands stepped together per collector env (BatchedHandEnv)")
     env_threads: int | None = _f(None, "physics threads of a batched env (null: 1 per hand)")
     overlap: bool = _f(False, "collect the next batch on a thread while the learner trains")
@@ -223,6 +231,7 @@ def get(cfg: TrainConfig, name: str) -> Any:
 
 _POSITIVE = (
     "collector.total_frames collector.frames_per_batch collector.num_workers collector.num_envs "
+    "collector.weight_sync_every "
     "replay.batch_size "
     "replay.buffer_size replay.n_steps network.num_atoms learner.target_update_period "
     "gentleness.dynamics_target_period gentleness.penalty_target_period gentleness.ensemble_size "
@@ -279,8 +288,34 @@ def validate(cfg: TrainConfig) -> None:
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_envs={col.num_envs}"
         )
+    problems += _ray_problems(col)
     replay = cfg.replay
     if not 0.0 <= replay.alpha <= 1.0 or not 0.0 <= replay.beta <= 1.0:
         problems.append(f"replay.alpha={replay.alpha} and beta={replay.beta} must be in [0, 1]")
     if problems:
         raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
+
+
+def _ray_problems(col: CollectorConfig) -> list[str]:
+    problems = []
+    for name in ("cpus_per_worker", "memory_per_worker_gb"):
+        if not getattr(col, name) > 0:
+            problems.append(f"collector.{name}={getattr(col, name)} must be > 0")
+    if col.kind == "ray" and col.num_workers >= 1 and col.frames_per_batch % col.num_workers:
+        problems.append(
+            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
+            f"collector.num_workers={col.num_workers} with collector.kind=ray"
+        )
+    if col.kind == "ray" and col.num_envs != 1:
+        problems.append(
+            f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "
+            "(num_envs=1); scale with num_workers"
+        )
+    if col.ray_address not in (None, "auto"):
+        from gentlerl.distributed.cluster import parse_address
+
+        try:
+            parse_address(col.ray_address)
+        except ValueError as err:
+            problems.append(str(err))
+    return problems

@@ -91,7 +91,8 @@ class RunLogger:
 class EpisodeTracker:
     """Accumulates per-episode statistics over collector batches (episodes span batches).
 
-    Episodes are told apart by the collector's trajectory ids; an episode is reported once its
+    Episodes are told apart by the collector's trajectory ids (and the batch row, one per
+    worker, for ``[workers, T]`` batches); an episode is reported once its
     ``("next", "done")`` flag is seen. Per episode: the return of each reward component, success,
     broken, the maximum impact over steps and sites (N), and the length; with a force watchdog
     (``DriverHandEnv``), ``watchdog``: whether it ended the episode.
@@ -107,8 +108,10 @@ class EpisodeTracker:
         return stats
 
     def update(self, batch: TensorDictBase) -> list[dict[str, float]]:
-        batch = batch.reshape(-1)
         traj = batch.get(("collector", "traj_ids"))
+        if batch.ndim == 2:  # [workers, T]: Ray workers number their trajectories independently
+            traj = traj + (torch.arange(batch.shape[0]) << 40).unsqueeze(-1)
+        batch, traj = batch.reshape(-1), traj.reshape(-1)
         nxt = batch.get("next")
         done = nxt.get(keys.DONE).reshape(-1)
         columns = {f"return_{k}": nxt.get(k).reshape(-1) for k in self.reward_keys}

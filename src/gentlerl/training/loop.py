@@ -56,6 +56,10 @@ class Trainer:
         self.cfg = cfg
         torch.set_num_threads(cfg.num_threads)
         seed_everything(cfg.seed)
+        if cfg.collector.kind == "ray":  # Ray installed, cluster reachable: before writing
+            from gentlerl.distributed.cluster import preflight
+
+            preflight(cfg.collector.ray_address)
         self.run_dir = Path(cfg.run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.env_factory = env_factory or default_env_factory(cfg)
@@ -106,7 +110,17 @@ class Trainer:
         frames_left = col.total_frames - c["frames"]
         seed = cfg.seed + c["frames"]
         collector = make_collector(col, self.env_factory, policy, frames_left, random_left, seed)
+        try:
+            self._collect_with(collector, seed, logger, eval_env)
+        finally:  # also on a worker's error: no env processes or Ray actors left behind
+            collector.shutdown()
+
+    def _collect_with(self, collector: Any, seed: int, logger: RunLogger, eval_env: Any) -> None:
+        cfg, c, col = self.cfg, self.counters, self.cfg.collector
         collector.set_seed(seed)
+        if col.kind == "ray":
+            collector.update_policy_weights_()  # workers start from the learner's current actor
+        next_sync = c["updates"] + col.weight_sync_every
         tracker, recent = EpisodeTracker(self.rewards.reward_keys), deque(maxlen=20)
         pending: dict[str, list[float]] = defaultdict(list)
         bar = tqdm(total=col.total_frames, initial=c["frames"], disable=not cfg.logging.progress)
@@ -126,14 +140,14 @@ class Trainer:
                     c["update_credit"] -= 1
                     for k, v in self.update().items():
                         pending[k].append(v)
-                if col.kind == "multi":
+                if col.kind == "multi" or (col.kind == "ray" and c["updates"] >= next_sync):
                     collector.update_policy_weights_()
+                    next_sync = c["updates"] + col.weight_sync_every
             fps = (c["frames"] - start_frames) / max(time.perf_counter() - start, 1e-9)
             self._report(logger, eval_env, pending, fps, batch.numel())
             bar.update(batch.numel())
             bar.set_postfix(self._postfix(recent, fps))
         bar.close()
-        collector.shutdown()
 
     def update(self) -> dict[str, float]:
         """One update: every model (then the rewards' schedule), then the D4PG learner."""
