@@ -23,15 +23,13 @@ import time
 import torch
 from torchrl.collectors import Collector
 
-from gentlerl import keys
 from gentlerl.distributed.collector import make_ray_collector
 from gentlerl.training import Trainer, make_config
-from gentlerl.training.builders import AGENT_KEYS, default_env_factory, make_exploration
+from gentlerl.training.builders import AGENT_KEYS, default_env_factory
 from gentlerl.training.config import TrainConfig
 
 #: The paper-scale grid of recipes/reproduce.sh: 57 runs of 500k env frames (utd 1).
 GRID_RUNS, PAPER_FRAMES = 57, 500_000
-TOUCH = (keys.TOUCH_GRID, ("next", keys.TOUCH_GRID))
 
 
 def _collect_rate(collector, frames: int) -> tuple[float, float]:
@@ -56,22 +54,21 @@ def _trainer(cfg: TrainConfig, fill_frames: int) -> Trainer:
         trainer.env_factory, None, frames_per_batch=200, total_frames=fill_frames,
         auto_register_policy_transforms=False,
     )  # fmt: skip
+    rewards = [("next", k) for k in trainer.rewards.reward_keys]
     for batch in collector:
-        batch = trainer.stack.transform(batch)
-        trainer.model_rb.extend(batch.exclude(*TOUCH, "collector").reshape(-1))
-        trainer._extend_agent_buffer(
-            batch.select(*AGENT_KEYS, *[("next", k) for k in cfg.reward_keys])
-        )
+        batch = trainer.rewards.transform(batch)
+        trainer.rewards.extend(batch)
+        trainer.writer.extend(batch.select(*AGENT_KEYS, *rewards))
     collector.shutdown()
     return trainer
 
 
 def _update_rate(trainer: Trainer, seconds: float = 10.0) -> float:
-    trainer._update_models(), trainer._update_learner()  # warm-up
+    """Full updates (every model, then the D4PG learner) per second."""
+    trainer.update()  # warm-up
     n, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
-        trainer._update_models()
-        trainer._update_learner()
+        trainer.update()
         n += 1
     return n / (time.perf_counter() - start)
 
@@ -83,9 +80,10 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     tmp = tempfile.mkdtemp()
-    cfg = make_config(run_dir=f"{tmp}/cpu", wandb_mode="disabled", progress=False)
+    quiet = {"wandb_mode": "disabled", "progress": False}
+    cfg = make_config(run_dir=f"{tmp}/cpu", logging=quiet)
     trainer = _trainer(cfg, 1000)
-    env_factory, policy = default_env_factory(cfg), make_exploration(trainer.learner, cfg, 20)
+    env_factory, policy = default_env_factory(cfg), trainer.builder.make_policy(trainer.learner)
     total = args.frames + 400
     rows = {}
     inproc = Collector(env_factory, policy, frames_per_batch=200, total_frames=total,
@@ -99,8 +97,7 @@ def main() -> None:
                                        total_frames=total, init_random_frames=0)  # fmt: skip
         rows[f"Ray, {workers} remote collector(s)"] = _collect_rate(collector, args.frames)
     updates = {"cpu scale, alone": _update_rate(trainer)}
-    paper = _trainer(make_config("paper", run_dir=f"{tmp}/paper", wandb_mode="disabled",
-                                 progress=False), 1000)  # fmt: skip
+    paper = _trainer(make_config("paper", run_dir=f"{tmp}/paper", logging=quiet), 1000)
     updates["paper scale, alone"] = _update_rate(paper)
     collector = make_ray_collector([env_factory] * 2, policy, frames_per_batch=200,
                                    total_frames=10**9, init_random_frames=0)  # fmt: skip

@@ -101,7 +101,7 @@ def test_help_has_one_line_per_field_with_default_and_choices():
     lines = describe().splitlines()
     assert len(lines) == len(list(iter_fields()))
     (line,) = [x for x in lines if x.strip().startswith("collector.kind=")]
-    assert line.split()[0] == "collector.kind=single" and line.endswith("{single, multi}")
+    assert line.split()[0] == "collector.kind=single" and line.endswith("{single, multi, ray}")
     (line,) = [x for x in lines if x.strip().startswith("gentleness.lam_prime=")]
     assert line.split()[0] == "gentleness.lam_prime=[2.0,2.0]"
 
