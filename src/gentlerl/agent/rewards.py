@@ -35,6 +35,10 @@ class IntrinsicRewards:
         reward_keys: the reward components, in critic-head order.
         losses: model name -> its loss (``{}`` without learned rewards).
         buffer: the models' 1-step transitions (``None`` without learned rewards).
+
+    Works on any env with ``observation``, ``action`` and a force entry ``force_key`` shaped
+    ``[..., n_sites, n_channels]`` (the hand's ``touch``, ``[5, 3]``); ``feature_shapes`` names the
+    entries the dynamics model predicts (used by the variants with dynamics surprise only).
     """
 
     def __init__(
@@ -46,11 +50,13 @@ class IntrinsicRewards:
         action_dim: int,
         feature_shapes: Mapping[str, Sequence[int]],
         seed: int = 0,
+        force_key: str = keys.TOUCH,
     ) -> None:
         self.reward_keys = reward_keys(variant)
         self.settings = settings
         ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed)
-        transforms: list = [ImpactPenalty(settings.lam)]  # impact is logged for every variant
+        # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
+        transforms: list = [ImpactPenalty(settings.lam, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}
         self._updaters: dict[str, HardUpdate] = {}
         for key in self.reward_keys:

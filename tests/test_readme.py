@@ -1,0 +1,130 @@
+"""The README's code runs as shown: its python blocks verbatim, its ``gentlerl`` commands parse.
+
+The python blocks run on :class:`PressEnv`, a small env that is not the hand: 3 sensor sites with
+2 channels each under the key ``"force"`` (the hand's is ``"touch"``, ``[5, 3]``), a 6-dim
+observation and 2 actions. The README calls it ``my_env``.
+"""
+
+import importlib
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Composite, Unbounded
+from torchrl.envs import EnvBase
+from torchrl.envs.utils import check_env_specs
+
+from gentlerl import cli, keys
+from gentlerl.functional import impact, impact_penalty
+from gentlerl.training.config import iter_fields
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+SITES, CHANNELS, FORCE = 3, 2, "force"
+
+
+def code_blocks(language: str) -> list[str]:
+    """Every fenced ```language block of the README, in order."""
+    return re.findall(rf"^```{language}\n(.*?)^```", README.read_text(), re.M | re.S)
+
+
+class PressEnv(EnvBase):
+    """Three pistons pushed by 2 actions (sites 0, 1 by one each, site 2 by both) into springs:
+    site i reads [k * depth_i, 0.1 * k * depth_i] (N) once its depth passes 0.
+    """
+
+    def __init__(self, stiffness: float = 60.0) -> None:
+        super().__init__(batch_size=torch.Size([]))
+        self.stiffness = stiffness
+        self.observation_spec = Composite(
+            {keys.OBSERVATION: Unbounded((2 * SITES,)), FORCE: Unbounded((SITES, CHANNELS))}
+        )
+        self.action_spec = Bounded(-1.0, 1.0, (2,))
+        self.reward_spec = Unbounded((1,))
+        self._mix = torch.tensor([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5]])
+
+    def _observe(self, pos: torch.Tensor, vel: torch.Tensor) -> dict[str, torch.Tensor]:
+        depth = self.stiffness * pos.clamp_min(0.0)
+        return {
+            keys.OBSERVATION: torch.cat([pos, vel]),
+            FORCE: torch.stack([depth, 0.1 * depth], -1),
+        }
+
+    def _reset(self, tensordict: TensorDictBase | None = None) -> TensorDictBase:
+        self._pos = torch.zeros(SITES)  # every piston at its spring: a push is felt
+        return TensorDict(self._observe(self._pos, torch.zeros(SITES)), [])
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        vel = 0.05 * tensordict[keys.ACTION] @ self._mix
+        self._pos = self._pos + vel
+        done = torch.zeros(1, dtype=torch.bool)
+        out = {**self._observe(self._pos, vel), "reward": torch.zeros(1)}
+        return TensorDict({**out, "done": done, "terminated": done.clone()}, [])
+
+    def _set_seed(self, seed: int | None) -> None:
+        torch.manual_seed(seed or 0)
+
+
+def test_the_readme_has_python_blocks_and_no_hand_specific_names_in_them():
+    blocks = code_blocks("python")
+    assert blocks, "README.md has no ```python block"
+    assert all('"touch"' not in block for block in blocks)
+
+
+@pytest.mark.parametrize("index", range(len(code_blocks("python"))))
+def test_readme_python_block_runs_verbatim_on_a_non_hand_env(index):
+    torch.manual_seed(0)
+    namespace = {"my_env": PressEnv()}
+    exec(compile(code_blocks("python")[index], f"README.md block {index}", "exec"), namespace)
+    for name, value in namespace.items():  # every rollout / batch it made has checked rewards
+        if isinstance(value, TensorDictBase) and ("next", keys.PENALTY) in value.keys(True):
+            force, next_force = value[FORCE], value["next", FORCE]
+            expected = impact_penalty(impact(force, next_force), 2.0, 2.0).unsqueeze(-1)
+            torch.testing.assert_close(value["next", keys.PENALTY], expected, msg=name)
+            assert value["next", keys.IMPACT].shape == (*value.shape, SITES)
+    if "rewards" in namespace:  # the variant block: 20 updates, past its reward delay of 10
+        assert namespace["rewards"].intrinsic_on
+        batch = namespace["batch"]
+        penalty, surprise = batch["next", keys.PENALTY], batch["next", keys.PENALTY_SURPRISE]
+        assert (penalty < 0).any() and (surprise[penalty < 0] > 0).all()
+        assert (surprise[penalty == 0] == 0).all()  # eq. 8: no penalty, no surprise
+        assert namespace["loss"].requires_grad and namespace["loss"].isfinite()
+
+
+def test_the_readme_env_is_a_valid_torchrl_env_with_a_non_hand_force_key():
+    env = PressEnv()
+    check_env_specs(env)
+    assert (
+        env.observation_spec[FORCE].shape == (SITES, CHANNELS)
+        and keys.TOUCH not in env.observation_spec.keys()
+    )
+
+
+def readme_commands() -> list[list[str]]:
+    """``gentlerl ...`` command lines of the README: in bash blocks and in inline code."""
+    text = README.read_text()
+    lines = [ln for block in code_blocks("bash") for ln in block.replace("&&", "\n").splitlines()]
+    lines += re.findall(r"`(gentlerl(?:-train)? [^`]*)`", text)
+    commands = [shlex.split(ln.split("#")[0]) for ln in lines]
+    commands = [c for c in commands if c and c[0] in ("gentlerl", "gentlerl-train")]
+    commands = [c for c in commands if c[1:2] != ["COMMAND"]]  # the placeholder in the prose
+    return [["gentlerl", "train", *c[1:]] if c[0] == "gentlerl-train" else c for c in commands]
+
+
+def test_readme_gentlerl_commands_name_real_subcommands_options_and_config_fields():
+    commands = readme_commands()
+    assert ["gentlerl", "train"] in commands  # the quick start
+    fields = {name for name, _ in iter_fields()}
+    for command in commands:
+        assert command[1] in cli.COMMANDS, command
+        if command[1] == "train":  # hydra overrides: every key is a config field
+            overrides = [a for a in command[2:] if a not in ("KEY=VALUE", "...", "-m")]
+            assert {a.split("=")[0] for a in overrides} <= fields, command
+            continue
+        module, _ = cli.COMMANDS[command[1]]
+        build_parser = getattr(importlib.import_module(module), "build_parser", None)
+        if build_parser is not None and command[2:]:  # argparse commands: every option exists
+            _, unknown = build_parser().parse_known_args(command[2:])
+            assert not unknown, command
