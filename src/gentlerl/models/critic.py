@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import pairwise
+from typing import Any
 
 import torch
 from tensordict.nn import TensorDictModule
@@ -94,19 +95,13 @@ def _per_head(value: float | Sequence[float], num_heads: int, name: str) -> list
 
 
 def make_critic(
-    obs_dim: int,
-    action_dim: int,
-    num_heads: int,
-    hidden: Sequence[int] = (400, 300),
-    num_atoms: int = 101,
-    v_min: float | Sequence[float] = -100.0,
-    v_max: float | Sequence[float] = 100.0,
-    *,
+    *args: Any,
     obs_key: str = keys.OBSERVATION,
     action_key: str = keys.ACTION,
     out_keys: Sequence[str] = (keys.STATE_ACTION_VALUE_LOGITS, keys.STATE_ACTION_VALUE_ATOMS),
+    **kwargs: Any,
 ) -> TensorDictModule:
-    """A :class:`FusedCritic` reading ``observation`` and ``action``, writing ``[..., K, atoms]``
-    logits and atoms (the support of each head, from ``v_min`` to ``v_max``)."""
-    critic = FusedCritic(obs_dim, action_dim, num_heads, hidden, num_atoms, v_min, v_max)
+    """A :class:`FusedCritic` (built from ``args`` / ``kwargs``: sizes, atoms, supports) reading
+    ``observation`` and ``action``, writing ``[..., K, atoms]`` logits and atoms."""
+    critic = FusedCritic(*args, **kwargs)
     return TensorDictModule(critic, in_keys=[obs_key, action_key], out_keys=list(out_keys))
