@@ -28,7 +28,7 @@ HELP = """gentlerl-train: train a gentle-manipulation agent (Huang et al. 2019) 
 Usage: gentlerl-train [field=value ...] [scale=cpu|paper|real] [-m sweep=a,b ...]
 Example: gentlerl-train task=fragile variant=r+rf+rsp gentleness.lam_prime=[2,1.5] seed=1
 
-Fields (default, then {choices}); run_dir defaults to runs/<task>/<variant>/seed<seed>:
+Fields (default, then {choices}):
 """
 
 
@@ -39,8 +39,9 @@ def describe() -> str:
     for name, f in iter_fields():
         choices = f.metadata.get("choices")
         valid = f"  {{{', '.join(choices() if callable(choices) else choices)}}}" if choices else ""
-        value = get(defaults, name)
-        lines.append(f"  {name}={_override(value)}".ljust(42) + f" {f.metadata['help']}{valid}")
+        # The app's run_dir is an interpolation of the run's identity, not the dataclass default.
+        shown = "runs/<task>/<variant>/seed<seed>" if name == "run_dir" else get(defaults, name)
+        lines.append(f"  {name}={_override(shown)}".ljust(42) + f" {f.metadata['help']}{valid}")
     return "\n".join(lines)
 
 
