@@ -34,6 +34,8 @@ GRID_RUNS, PAPER_FRAMES = 57, 500_000
 
 def _collect_rate(collector, frames: int) -> tuple[float, float]:
     """(seconds to the first batch, frames/s after it)."""
+    if hasattr(collector, "remote_collectors"):
+        collector.update_policy_weights_()  # as the loop does before its first batch
     start, first, n = time.perf_counter(), None, 0
     for batch in collector:
         if first is None:
