@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 import numpy as np
@@ -129,3 +130,31 @@ def make_env(
     if seed is not None:
         env.set_seed(seed)
     return env
+
+
+_TASK_CLASSES: dict[str, type[Explore]] = {"explore": Explore, "touch": Touch, "fragile": Fragile}
+#: Arguments of :func:`make_env` that a training run sets itself (from its seed and collector).
+_SET_BY_RUN = {"task", "seed", "num_envs", "num_threads", "random", "task_cls", "self"}
+
+
+def _named_params(fn: Any) -> tuple[set[str], bool]:
+    """``fn``'s named parameters, and whether it also takes ``**kwargs``."""
+    params = inspect.signature(fn).parameters.values()
+    named = {p.name for p in params if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)}
+    return named, any(p.kind == p.VAR_KEYWORD for p in params)
+
+
+def env_kwarg_names(task: str) -> list[str]:
+    """The keyword arguments ``make_env(task, seed=..., **kwargs)`` accepts as ``kwargs`` (the
+    calibration's fields, ``make_env``'s and the task class's keywords) for config validation."""
+    if task not in _TASK_CLASSES:
+        raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
+    names = _named_params(make_env)[0] | _named_params(_load)[0]
+    names |= {key for fields in CALIBRATIONS.values() for key in fields}
+    for cls in _TASK_CLASSES[task].__mro__:
+        if "__init__" in vars(cls):
+            named, more = _named_params(cls.__init__)
+            names |= named
+            if not more:
+                break
+    return sorted(names - _SET_BY_RUN)

@@ -12,6 +12,7 @@ The config lives in the package (hydra's ``ConfigStore``): the schema is
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import hydra
@@ -93,13 +94,30 @@ def config_from_hydra(cfg: DictConfig) -> TrainConfig:
     return make_config(**values)
 
 
-@hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
-def _app(cfg: DictConfig) -> dict[str, float]:
-    from gentlerl.distributed import ClusterError
+def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
+    """Train the run ``cfg`` describes; on failure, remove ``output_dir`` if it is still empty.
+
+    hydra makes its output dir (the run_dir) before the config is checked, so a refused run
+    would leave an empty directory behind.
+    """
     from gentlerl.training.loop import train
 
     try:
-        summary = train(config_from_hydra(cfg))
+        return train(config_from_hydra(cfg))
+    except Exception:
+        if output_dir.is_dir() and not any(output_dir.iterdir()):
+            output_dir.rmdir()
+        raise
+
+
+@hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
+def _app(cfg: DictConfig) -> dict[str, float]:
+    from hydra.core.hydra_config import HydraConfig
+
+    from gentlerl.distributed import ClusterError
+
+    try:
+        summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
         raise SystemExit(str(err)) from None
     print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))

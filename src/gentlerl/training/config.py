@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from gentlerl.training.config_checks import consistency_problems, type_problems
 from gentlerl.training.presets import SCALES
 from gentlerl.training.schema import (
     COLLECTORS,
@@ -106,7 +107,10 @@ _NON_NEGATIVE = (
 
 def validate(cfg: TrainConfig) -> None:
     """Raise one ``ValueError`` listing every problem, before anything starts."""
-    problems = []
+    problems = type_problems(cfg)
+    if problems:  # the range checks below compare numbers
+        raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
+    problems = consistency_problems(cfg)
     for name, f in iter_fields():
         choices = f.metadata.get("choices")
         if choices is not None:

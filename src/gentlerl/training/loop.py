@@ -22,6 +22,7 @@ from tqdm.auto import tqdm
 
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.learner import TrainingState
+from gentlerl.training import guards
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
@@ -31,7 +32,6 @@ from gentlerl.training.builders import (
     make_eval_env,
 )
 from gentlerl.training.checkpoint import (
-    load_checkpoint,
     load_replay_buffer_state,
     remove_stale_temp_files,
     replay_buffer_state,
@@ -54,13 +54,16 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, env_factory: EnvFactory | None = None) -> None:
         validate(cfg)
         self.cfg = cfg
+        self.run_dir = Path(cfg.run_dir)
+        # Before anything is written: a refused resume leaves no trace in run_dir.
+        self.ckpt = self.run_dir / CHECKPOINT
+        self.resume_state = guards.load_resume_state(cfg, self.ckpt)
         torch.set_num_threads(cfg.num_threads)
         seed_everything(cfg.seed)
         if cfg.collector.kind == "ray":  # Ray installed, cluster reachable: before writing
             from gentlerl.distributed.cluster import preflight
 
             preflight(cfg.collector.ray_address)
-        self.run_dir = Path(cfg.run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = self.env_factory()
@@ -79,15 +82,15 @@ class Trainer:
 
     # -- the loop ------------------------------------------------------------------------
     def run(self) -> dict[str, float]:
-        cfg, ckpt = self.cfg, self.run_dir / CHECKPOINT
+        cfg = self.cfg
         remove_stale_temp_files(self.run_dir)
-        if cfg.resume and ckpt.exists():
-            self.load_state_dict(load_checkpoint(ckpt))
-        elif not cfg.resume and (ckpt.exists() or (self.run_dir / "logs").exists()):
-            raise ValueError(
-                f"run_dir={str(self.run_dir)!r} already holds a run; pass resume=true to continue "
-                "it, or choose another run_dir"
-            )
+        if self.resume_state is not None:
+            state, self.resume_state = self.resume_state, None
+            done = guards.finished_summary(state, self.run_dir / DONE_MARKER, cfg)
+            if done is not None:
+                return done
+            self.load_state_dict(state)
+            guards.record_config_changes(self.run_dir, state, cfg.to_dict())
         config = _plain(cfg.to_dict())
         (self.run_dir / "config.yaml").write_text(yaml.safe_dump(config))
         log = cfg.logging
@@ -96,7 +99,11 @@ class Trainer:
         eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, log.eval_episodes)
         if cfg.collector.total_frames > self.counters["frames"]:
             self._collect(logger, eval_env)
-        summary = self._evaluate(logger, eval_env)
+        last = self.eval_history[-1] if self.eval_history else {"frames": -1}
+        if last["frames"] == self.counters["frames"]:  # the last batch's evaluation was the final
+            summary = {k: v for k, v in last.items() if k != "frames"}
+        else:
+            summary = self._evaluate(logger, eval_env)
         self.save()
         (self.run_dir / DONE_MARKER).write_text("done\n")
         logger.close()
@@ -127,6 +134,7 @@ class Trainer:
         start, start_frames = time.perf_counter(), c["frames"]
         for batch in collector:
             batch = self.rewards.transform(batch)
+            guards.check_rewards(batch, self.rewards.reward_keys, c["frames"], self.ckpt)
             c["frames"] += batch.numel()
             for ep in tracker.update(batch):
                 logger.log({f"episode/{k}": v for k, v in ep.items()}, c["frames"])
@@ -162,6 +170,8 @@ class Trainer:
         metrics.update({k: v.item() for k, v in out.items()})
         for key in self.rewards.reward_keys:
             metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
+        where = f"frame {self.counters['frames']} (update {self.counters['updates']})"
+        guards.stop_if_not_finite(metrics, where, self.ckpt)
         return metrics
 
     def _report(

@@ -150,7 +150,7 @@ class TrainConfig:
     seed: int = _f(0, "seeds torch, numpy, python, the envs and the models")
     scale: str = _f("cpu", "preset applied under the overrides", _scale_names)
     run_dir: str = _f("runs/default", "where the run writes everything")
-    resume: bool = _f(False, "continue the run in run_dir from its checkpoint")
+    resume: bool | str = _f(False, "continue run_dir's run: true, false (start), auto (either)")
     num_threads: int = _f(1, "torch threads (the env and workers need the other cores)")
     env: EnvConfig = field(default_factory=EnvConfig)
     collector: CollectorConfig = field(default_factory=CollectorConfig)

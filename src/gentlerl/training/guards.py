@@ -1,0 +1,175 @@
+"""What a run checks before it trusts its inputs: the checkpoint it resumes, the settings that
+changed since, and every reward and loss it produces.
+
+Resuming (``resume``): ``false`` refuses a run directory that already holds a run, ``true`` needs
+its checkpoint, ``"auto"`` continues it when there is one and starts otherwise. *Structural*
+fields (everything outside :data:`SAFE_TO_CHANGE`: task, variant, seed, network sizes, supports,
+reward parameters, buffer layout, env) must equal the checkpoint's; the safe ones may change and
+each change is appended to ``config_history.yaml`` in the run directory.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import torch
+import yaml
+
+from gentlerl.training.checkpoint import load_checkpoint
+
+CONFIG_HISTORY = "config_history.yaml"
+
+#: Fields a resumed run may change: how long and how fast it goes on, and what it logs. The rest
+#: shape the saved networks and buffers or the rewards already stored in them.
+SAFE_TO_CHANGE = frozenset(
+    (
+        "run_dir resume scale num_threads "
+        "collector.total_frames collector.frames_per_batch collector.init_random_frames "
+        "collector.sigma collector.overlap collector.env_threads collector.ray_address "
+        "collector.cpus_per_worker collector.memory_per_worker_gb collector.weight_sync_every "
+        "replay.batch_size replay.alpha replay.beta "
+        "learner.utd_ratio learner.lr_actor learner.lr_critic learner.target_update_period "
+        "learner.policy_noise "
+        "gentleness.reward_delay gentleness.dynamics_target_period "
+        "gentleness.penalty_target_period gentleness.model_batch_size gentleness.lr_model "
+        "logging.eval_every_frames logging.eval_episodes logging.log_every_updates "
+        "logging.checkpoint_every_frames logging.wandb_mode logging.wandb_project "
+        "logging.progress"
+    ).split()
+)
+#: Not settings of the run: never recorded as changes.
+_LOCATION = frozenset({"run_dir", "resume"})
+
+
+class NonFiniteError(RuntimeError):
+    """A reward or loss became NaN or infinite; training stopped before saving it."""
+
+
+def flatten(config: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"group.field": value}`` of a nested config dict, tuples as lists (as YAML keeps them)."""
+    flat: dict[str, Any] = {}
+    for name, value in config.items():
+        if isinstance(value, Mapping) and name != "kwargs":
+            flat.update(flatten(value, f"{prefix}{name}."))
+        else:
+            flat[f"{prefix}{name}"] = _plain(value)
+    return flat
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def config_changes(saved: Mapping[str, Any], now: Mapping[str, Any]) -> dict[str, tuple]:
+    """``{field: (saved value, current value)}`` for every field that differs."""
+    old, new = flatten(saved), flatten(now)
+    names = sorted(set(old) | set(new))
+    return {n: (old.get(n), new.get(n)) for n in names if old.get(n) != new.get(n)}
+
+
+def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
+    """The checkpoint to continue the run ``cfg`` (a ``TrainConfig``) from, or ``None`` to start;
+    raises before anything is written.
+
+    Raises:
+        ValueError: a run exists and ``resume=false``; ``resume=true`` without a checkpoint;
+            structural fields differ from the checkpoint's (one line listing them).
+    """
+    run_dir, resume = checkpoint.parent, cfg.resume
+    if resume is False:
+        if checkpoint.exists() or (run_dir / "logs").exists():
+            raise ValueError(
+                f"run_dir={str(run_dir)!r} already holds a run; pass resume=true to continue it "
+                "(resume=auto: continue it or start), or choose another run_dir"
+            )
+        return None
+    if not checkpoint.exists():
+        if resume is True:
+            raise ValueError(
+                f"resume=true but there is no checkpoint to resume at {checkpoint}; check "
+                "run_dir, or pass resume=auto to start the run when it has none"
+            )
+        return None
+    state = load_checkpoint(checkpoint)
+    changes = config_changes(state["config"], cfg.to_dict())
+    structural = [n for n in changes if n not in SAFE_TO_CHANGE]
+    if structural:
+        listed = ", ".join(f"{n} ({changes[n][0]!r} -> {changes[n][1]!r})" for n in structural)
+        raise ValueError(
+            f"cannot resume {checkpoint}: structural settings differ from the checkpoint's: "
+            f"{listed}; resume with the checkpoint's values or start a new run_dir"
+        )
+    return state
+
+
+def finished_summary(state: Mapping[str, Any], done_marker: Path, cfg: Any) -> dict | None:
+    """The final evaluation of a run that is done (not to be run again); else ``None``, and a run
+    given a longer ``total_frames`` loses its ``done_marker`` until it is done again."""
+    if state["counters"]["frames"] < cfg.collector.total_frames:
+        done_marker.unlink(missing_ok=True)
+        return None
+    if not done_marker.exists():
+        return None
+    last = state["eval_history"][-1]
+    print(
+        f"{done_marker.parent} finished at {last['frames']} frames: not run again", file=sys.stderr
+    )
+    return {k: v for k, v in last.items() if k != "frames"}
+
+
+def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[str]:
+    """Append the safe changes since the checkpoint ``state`` to ``config_history.yaml``; their
+    names."""
+    frames = state["counters"]["frames"]
+    changes = {n: v for n, v in config_changes(state["config"], now).items() if n not in _LOCATION}
+    if not changes:
+        return []
+    path = run_dir / CONFIG_HISTORY
+    history = yaml.safe_load(path.read_text()) if path.exists() else []
+    entry = {n: {"was": old, "now": new} for n, (old, new) in changes.items()}
+    history.append({"resumed_at_frame": int(frames), "changed": entry})
+    fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=f".{CONFIG_HISTORY}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        yaml.safe_dump(history, f, sort_keys=False)
+    os.replace(tmp, path)
+    return sorted(changes)
+
+
+def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) -> None:
+    """Raise :class:`NonFiniteError` naming the first NaN / inf value of ``values`` and ``where``
+    (the frames) it appeared; ``values`` maps names to floats or tensors (all elements checked).
+    """
+    for name, value in values.items():
+        finite = (
+            bool(torch.isfinite(value).all())
+            if isinstance(value, torch.Tensor)
+            else math.isfinite(value)
+        )
+        if not finite:
+            kept = (
+                f"the last checkpoint {checkpoint} is intact"
+                if checkpoint.exists()
+                else ("no checkpoint was written yet")
+            )
+            raise NonFiniteError(
+                f"non-finite {name} at {where}: training stopped; {kept} (a NaN / inf "
+                "reward or loss: check the env's forces, the config's numbers, the learning rates)"
+            )
+
+
+def check_rewards(batch: Any, reward_keys: list[str], frames: int, checkpoint: Path) -> None:
+    """:func:`stop_if_not_finite` on each ``("next", key)`` reward of a collected ``batch`` whose
+    frames follow the first ``frames``."""
+    where = f"frames {frames + 1}-{frames + batch.numel()}"
+    values = {key: batch.get(("next", key)) for key in reward_keys}
+    stop_if_not_finite(values, where, checkpoint)
