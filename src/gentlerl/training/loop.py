@@ -91,7 +91,7 @@ class Trainer:
                 return done
             self.load_state_dict(state)
             guards.record_config_changes(self.run_dir, state, cfg.to_dict())
-        config = _plain(cfg.to_dict())
+        config = guards.plain(cfg.to_dict())
         (self.run_dir / "config.yaml").write_text(yaml.safe_dump(config))
         log = cfg.logging
         logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project)
@@ -279,15 +279,6 @@ class Trainer:
 def _crossed(frames: int, batch_frames: int, every: int) -> bool:
     """Whether the last batch reached a multiple of ``every`` frames."""
     return frames // every > (frames - batch_frames) // every
-
-
-def _plain(value: Any) -> Any:
-    """Tuples to lists so the config dumps as plain YAML."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    return value
 
 
 def train(cfg: TrainConfig, env_factory: EnvFactory | None = None) -> dict[str, float]:
