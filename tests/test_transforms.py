@@ -133,7 +133,9 @@ def test_unknown_variant():
 
 
 def test_dynamics_surprise_is_the_mixture_nll_and_waits_for_activation():
-    stack = make_reward_transforms("rs", reward_delay=10, hidden=16, ensemble_size=3)
+    stack = make_reward_transforms(
+        "rs", reward_delay=10, hidden=16, ensemble_size=3, dynamics_surprise_scale=0.5
+    )
     surprise = stack.transform[1]
     assert isinstance(surprise, DynamicsSurprise)
     batch = _pressing_rollout(ToyHandEnv())
@@ -148,7 +150,7 @@ def test_dynamics_surprise_is_the_mixture_nll_and_waits_for_activation():
         expected = expected + gaussian_nll(batch["next", key].flatten(1), mu, s2).sum(
             -1, keepdim=True
         )
-    torch.testing.assert_close(out, expected)
+    torch.testing.assert_close(out, 0.5 * expected)  # times dynamics_surprise_scale
 
 
 def test_penalty_surprise_zero_without_impact_and_formula_with_it():
