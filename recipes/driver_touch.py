@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from gentlerl.envs import DriverHandEnv, ForceWatchdog, SimulatedDriver
+from gentlerl.envs.hand import CALIBRATIONS, DEFAULT_CALIBRATION
 from gentlerl.envs.sim_driver import calibration_session
 from gentlerl.training import make_config, train
 from gentlerl.transforms import TouchCalibration
@@ -31,9 +32,9 @@ from gentlerl.transforms.calibration import fit_errors
 CALIBRATION_FILE = "touch_calibration.pt"
 
 
-def calibrate(seed: int, run_dir: Path) -> tuple[TouchCalibration, dict[str, Any]]:
+def calibrate(seed: int, run_dir: Path, hand: str) -> tuple[TouchCalibration, dict[str, Any]]:
     """Fit on one scripted session, measure on another (other press rates), save the fit."""
-    driver = SimulatedDriver(seed=seed)
+    driver = SimulatedDriver(seed=seed, calibration=hand)
     raw, force = calibration_session(driver, rates=(0.01, 0.02, 0.04))
     calibration = TouchCalibration()
     fit = calibration.fit(raw, force)
@@ -76,6 +77,7 @@ def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None
         run_dir=str(run_dir),
         logging={"wandb_mode": "disabled", "progress": args.progress},
         collector=collector,
+        env={"kwargs": {"calibration": args.hand}},
     )
     watchdogs: list[ForceWatchdog] = []
     factory = None
@@ -83,8 +85,14 @@ def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None
 
         def factory() -> DriverHandEnv:
             watchdogs.append(ForceWatchdog(args.fingertip_limit, args.block_limit))
-            driver = SimulatedDriver(seed=args.seed)
-            return DriverHandEnv(driver, "touch", calibration=calibration, watchdog=watchdogs[-1])
+            driver = SimulatedDriver(seed=args.seed, calibration=args.hand)
+            return DriverHandEnv(
+                driver,
+                "touch",
+                calibration=calibration,
+                watchdog=watchdogs[-1],
+                action_scale=CALIBRATIONS[args.hand]["action_scale"],
+            )
 
     result = summarize(run_dir, train(cfg, factory))
     if watchdogs:
@@ -103,6 +111,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--total-frames", type=int, default=None, help="default: scale=real's")
     parser.add_argument("--fingertip-limit", type=float, default=10.0, help="watchdog, N")
     parser.add_argument("--block-limit", type=float, default=15.0, help="watchdog, N")
+    parser.add_argument(
+        "--hand",
+        choices=sorted(CALIBRATIONS),
+        default=DEFAULT_CALIBRATION,
+        help="the simulated hand's calibration (gentlerl.envs.hand.CALIBRATIONS), both runs",
+    )
     parser.add_argument("--progress", action="store_true", help="show a progress bar")
     args = parser.parse_args(argv)
     run_dir = Path(args.run_dir)
@@ -110,7 +124,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     results: dict[str, Any] = {"seed": args.seed, "scale": "real"}
     calibration = None
     if args.env in ("driver", "both"):
-        calibration, results["calibration"] = calibrate(args.seed, run_dir)
+        calibration, results["calibration"] = calibrate(args.seed, run_dir, args.hand)
     for env in ("driver", "sim") if args.env == "both" else (args.env,):
         results[env] = run(env, args, calibration)
     tmp = run_dir / "results.json.tmp"

@@ -80,7 +80,8 @@ class SimulatedDriver:
         seed: block placement, sensor parameters and noise (:meth:`seed`: placement and noise).
         tactile_channels: 1 (pressure, as the paper's BioTacs) to 3 (also the tangential ones).
         sensor: the sensor model (default :class:`BioTacModel` with ``seed``).
-        **task_kwargs: ``randomize_block``, ``block_range``, ``block_pos``.
+        **task_kwargs: ``calibration`` (a name in ``gentlerl.envs.hand.CALIBRATIONS``),
+            ``randomize_block``, ``block_range``, ``block_pos``.
     """
 
     def __init__(
