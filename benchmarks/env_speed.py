@@ -1,10 +1,12 @@
 """Hand env speed: TorchRL ``HandEnv`` control steps/s vs raw ``physics.step`` of the same model.
 
-Each control step is ``n_sub_steps`` = 25 MuJoCo steps of 2 ms (50 ms, 20 Hz). Rows:
-raw physics (the same 25 sub-steps and random delta-position control, nothing else), the dm_control
-environment, the TorchRL env (``env.step`` on a reused tensordict; and with ``step_mdp`` as a\nhand-written loop would), its
-``rollout``, and a 2-worker ``ParallelEnv`` (total steps/s). The ``explore`` task is used so that
-no episode ends early. It also measures how often uniformly random actions touch the block,\nsucceed or break it. Run: ``python benchmarks/env_speed.py [--steps 3000] [--episodes 100]``.
+Each control step is ``n_sub_steps`` = 25 MuJoCo steps of 2 ms (50 ms, 20 Hz). Rows: raw physics
+(the same 25 sub-steps and random delta-position control, nothing else), the dm_control
+environment, the TorchRL env (``env.step`` feeding each step's ``"next"`` back in; and with
+``step_mdp``), its ``rollout``, the batched env (``make_env(num_envs=N)``, total frames/s over its
+hands) and a 2-worker ``ParallelEnv`` (total). The ``explore`` task is used so that no episode
+ends early. It also measures how often uniformly random actions touch the block, succeed or break
+it. Run: ``python benchmarks/env_speed.py [--steps 3000] [--episodes 100] [--markdown]``.
 """
 
 from __future__ import annotations
@@ -85,6 +87,8 @@ def dm_control_env() -> Callable[[int], None]:
 
 
 def torchrl_step(*, with_step_mdp: bool) -> Callable[[int], None]:
+    """``env.step`` as a loop over it uses the env: the next input is the last output's
+    ``"next"`` entry (no ``"next"`` left in the input to merge), or ``step_mdp`` of it."""
     env = make_env("explore", seed=0, time_limit=10**9)
     td = env.reset()
     rng = np.random.default_rng(0)  # the same actions as above
@@ -94,8 +98,7 @@ def torchrl_step(*, with_step_mdp: bool) -> Callable[[int], None]:
         for _ in range(n):
             td.set(keys.ACTION, torch.from_numpy(rng.uniform(-1, 1, 20)).float())
             td = env.step(td)
-            if with_step_mdp:
-                td = step_mdp(td, keep_other=False)
+            td = step_mdp(td, keep_other=False) if with_step_mdp else td.get("next")
 
     return run
 

@@ -8,7 +8,11 @@ from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.envs import TASKS
 from gentlerl.training import SCALES, make_config
-from gentlerl.training.builders import check_env_keys, collection_env_factory
+from gentlerl.training.builders import (
+    check_env_keys,
+    collection_env_factory,
+    default_env_factory,
+)
 from gentlerl.training.cli import config_from_hydra, describe, register_configs
 from gentlerl.training.config import GentlenessConfig, iter_fields
 from gentlerl.transforms import DynamicsSurprise
@@ -79,7 +83,7 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"bach_size": 3}, "unknown config field(s) ['bach_size']"),
         ({"replay": {"bach_size": 3}}, "unknown config field replay.'bach_size'"),
         ({"replay": 3}, "config group 'replay' takes a mapping, got 3"),
-        ({"collector": {"num_envs": 0}}, "collector.num_envs=0 must be >= 1"),
+        ({"collector": {"num_envs": 0}}, "collector.num_envs=0 must be >= 1 (or null: automatic)"),
         ({"collector": {"num_envs": 3}}, "collector.frames_per_batch=200 must be a multiple of collector.num_envs=3"),
         ({"collector": {"env_threads": 0}}, "collector.env_threads=0 must be >= 1"),
         ({"collector": {"kind": "multi", "overlap": True}}, "collector.overlap=true needs collector.kind='single'"),
@@ -140,7 +144,13 @@ def _compose(overrides):
 
 def test_num_envs_needs_a_batching_env_factory():
     collector = make_config().collector
+    # Automatic (null): 4 hands for gentlerl's hand env, 1 for a factory that cannot batch.
+    assert collector.num_envs is None
     assert collection_env_factory(collector, ToyHandEnv) is ToyHandEnv
+    hand = default_env_factory(make_config())
+    assert collection_env_factory(collector, hand).keywords["num_envs"] == 4
+    odd = make_config(collector={"frames_per_batch": 201}).collector
+    assert collection_env_factory(odd, hand) is hand
     with pytest.raises(ValueError, match="num_envs=4 needs an env factory that takes num_envs"):
         collection_env_factory(make_config(collector={"num_envs": 4}).collector, ToyHandEnv)
 

@@ -14,6 +14,7 @@ from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.training.config import CollectorConfig, TrainConfig
 from gentlerl.training.prefetch import PrefetchCollector
+from gentlerl.training.schema import AUTO_NUM_ENVS
 from gentlerl.transforms import ImpactPenalty
 
 EnvFactory = Callable[..., EnvBase]
@@ -53,15 +54,21 @@ def takes_num_envs(env_factory: EnvFactory) -> bool:
 
 
 def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> EnvFactory:
-    """``env_factory`` for the collector: ``cfg.num_envs`` hands per env when above 1."""
-    if cfg.num_envs == 1:
+    """``env_factory`` for the collector: ``cfg.num_envs`` hands per env when above 1 (null:
+    :data:`~gentlerl.training.schema.AUTO_NUM_ENVS` where the factory batches and they divide
+    ``frames_per_batch``, else 1)."""
+    num_envs = cfg.num_envs
+    if num_envs is None:
+        auto = takes_num_envs(env_factory) and cfg.frames_per_batch % AUTO_NUM_ENVS == 0
+        num_envs = AUTO_NUM_ENVS if auto else 1
+    if num_envs == 1:
         return env_factory
     if not takes_num_envs(env_factory):
         raise ValueError(
-            f"num_envs={cfg.num_envs} needs an env factory that takes num_envs (as "
+            f"num_envs={num_envs} needs an env factory that takes num_envs (as "
             "gentlerl.envs.make_env does); this one does not"
         )
-    return partial(env_factory, num_envs=cfg.num_envs, num_threads=cfg.env_threads)
+    return partial(env_factory, num_envs=num_envs, num_threads=cfg.env_threads)
 
 
 #: What the loop reads from every env step besides the variant's reward components.

@@ -89,7 +89,7 @@ def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
 
 
 _POSITIVE = (
-    "collector.total_frames collector.frames_per_batch collector.num_workers collector.num_envs "
+    "collector.total_frames collector.frames_per_batch collector.num_workers "
     "collector.weight_sync_every "
     "replay.batch_size "
     "replay.buffer_size replay.n_steps network.num_atoms learner.target_update_period "
@@ -145,7 +145,9 @@ def validate(cfg: TrainConfig) -> None:
         problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")
     if col.env_threads is not None and col.env_threads < 1:
         problems.append(f"collector.env_threads={col.env_threads} must be >= 1 (or null)")
-    if col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
+    if col.num_envs is not None and col.num_envs < 1:
+        problems.append(f"collector.num_envs={col.num_envs} must be >= 1 (or null: automatic)")
+    if col.num_envs is not None and col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
         problems.append(
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_envs={col.num_envs}"
@@ -168,7 +170,7 @@ def _ray_problems(col: CollectorConfig) -> list[str]:
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_workers={col.num_workers} with collector.kind=ray"
         )
-    if col.kind == "ray" and col.num_envs != 1:
+    if col.kind == "ray" and col.num_envs not in (None, 1):
         problems.append(
             f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "
             "(num_envs=1); scale with num_workers"

@@ -46,6 +46,11 @@ class EnvConfig:
     kwargs: dict[str, Any] = _f({}, "keyword arguments of make_env, e.g. {time_limit: 100}")
 
 
+#: Hands per collector env when ``collector.num_envs`` is null and the env factory batches: 4 hands
+#: on the 2 physics threads of a 2-core machine (benchmarks/RESULTS.md, "train_speed").
+AUTO_NUM_ENVS = 4
+
+
 @dataclass
 class CollectorConfig:
     kind: str = _f(
@@ -58,7 +63,11 @@ class CollectorConfig:
     cpus_per_worker: float = _f(1.0, "ray: CPUs each remote collector reserves")
     memory_per_worker_gb: float = _f(1.0, "ray: memory (GiB) each remote collector reserves")
     weight_sync_every: int = _f(50, "ray: learner updates between weight pushes to the workers")
-    num_envs: int = _f(1, "hands stepped together per collector env (BatchedHandEnv)")
+    num_envs: int | None = _f(
+        None,
+        "hands stepped together per collector env (BatchedHandEnv); null: AUTO_NUM_ENVS where the "
+        "env factory batches (gentlerl's hand env) and they divide frames_per_batch, else 1",
+    )
     env_threads: int | None = _f(None, "physics threads of a batched env (null: 1 per hand)")
     overlap: bool = _f(False, "collect the next batch on a thread while the learner trains")
     total_frames: int = _f(100_000, "env steps of the whole run")
