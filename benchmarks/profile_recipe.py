@@ -25,7 +25,9 @@ import yaml
 from gentlerl.training import make_config, train
 
 #: Functions whose callees are the loop's phases (callees of every one found, minus each other).
-LOOP = (r"training/loop\.py:\d+\(_collect\)", r"training/loop\.py:\d+\(run\)")
+LOOP = tuple(
+    rf"training/loop\.py:\d+\({name}\)" for name in ("run", "_collect", "update", "_report")
+)
 #: Totals found anywhere: label -> (pattern, "tottime" or "cumtime").
 TOTALS = {
     "MuJoCo physics (mj_step*, anywhere)": (r"<built-in method mujoco\._functions\.mj_step", 2),

@@ -55,11 +55,15 @@ def takes_num_envs(env_factory: EnvFactory) -> bool:
 
 def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> EnvFactory:
     """``env_factory`` for the collector: ``cfg.num_envs`` hands per env when above 1 (null:
-    :data:`~gentlerl.training.schema.AUTO_NUM_ENVS` where the factory batches and they divide
-    ``frames_per_batch``, else 1)."""
+    :data:`~gentlerl.training.schema.AUTO_NUM_ENVS` for the single collector where the factory
+    batches and they divide ``frames_per_batch``, else 1)."""
     num_envs = cfg.num_envs
     if num_envs is None:
-        auto = takes_num_envs(env_factory) and cfg.frames_per_batch % AUTO_NUM_ENVS == 0
+        auto = (
+            cfg.kind == "single"
+            and takes_num_envs(env_factory)
+            and cfg.frames_per_batch % AUTO_NUM_ENVS == 0
+        )
         num_envs = AUTO_NUM_ENVS if auto else 1
     if num_envs == 1:
         return env_factory

@@ -170,6 +170,11 @@ def _ray_problems(col: CollectorConfig) -> list[str]:
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_workers={col.num_workers} with collector.kind=ray"
         )
+    if col.kind == "multi" and col.num_envs not in (None, 1):
+        problems.append(
+            f"collector.num_envs={col.num_envs} with collector.kind=multi: batched envs run in "
+            "the single collector (num_envs=1 with multi; scale with num_workers)"
+        )
     if col.kind == "ray" and col.num_envs not in (None, 1):
         problems.append(
             f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "

@@ -65,8 +65,8 @@ class CollectorConfig:
     weight_sync_every: int = _f(50, "ray: learner updates between weight pushes to the workers")
     num_envs: int | None = _f(
         None,
-        "hands stepped together per collector env (BatchedHandEnv); null: AUTO_NUM_ENVS where the "
-        "env factory batches (gentlerl's hand env) and they divide frames_per_batch, else 1",
+        "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
+        "AUTO_NUM_ENVS where the env factory batches (gentlerl's hand env), else 1",
     )
     env_threads: int | None = _f(None, "physics threads of a batched env (null: 1 per hand)")
     overlap: bool = _f(False, "collect the next batch on a thread while the learner trains")
