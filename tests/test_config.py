@@ -7,6 +7,7 @@ from torchrl.envs import RenameTransform, TransformedEnv
 from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.envs import TASKS
+from gentlerl.envs.batched import available_cores
 from gentlerl.training import SCALES, make_config
 from gentlerl.training.builders import (
     check_env_keys,
@@ -152,6 +153,9 @@ def test_num_envs_needs_a_batching_env_factory():
     assert collection_env_factory(collector, hand).keywords["num_envs"] == 4
     odd = make_config(collector={"frames_per_batch": 201}).collector
     assert collection_env_factory(odd, hand) is hand
+    many = make_config(collector={"env_threads": 64}).collector
+    with pytest.warns(UserWarning, match="collector.env_threads=64 is more than the"):
+        assert collection_env_factory(many, hand).keywords["num_threads"] == available_cores()
     with pytest.raises(ValueError, match="num_envs=4 needs an env factory that takes num_envs"):
         collection_env_factory(make_config(collector={"num_envs": 4}).collector, ToyHandEnv)
 

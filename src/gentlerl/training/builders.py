@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import warnings
 from collections.abc import Callable
 from functools import partial
 
@@ -72,7 +73,17 @@ def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> Env
             f"num_envs={num_envs} needs an env factory that takes num_envs (as "
             "gentlerl.envs.make_env does); this one does not"
         )
-    return partial(env_factory, num_envs=num_envs, num_threads=cfg.env_threads)
+    from gentlerl.envs.batched import available_cores  # the envs load dm_control: only here
+
+    threads = cfg.env_threads
+    if threads is not None and threads > available_cores():
+        warnings.warn(
+            f"collector.env_threads={threads} is more than the {available_cores()} CPU cores "
+            f"available; using {available_cores()}",
+            stacklevel=2,
+        )
+        threads = available_cores()
+    return partial(env_factory, num_envs=num_envs, num_threads=threads)
 
 
 #: What the loop reads from every env step besides the variant's reward components.
