@@ -66,9 +66,11 @@ class CollectorConfig:
     num_envs: int | None = _f(
         None,
         "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
-        "AUTO_NUM_ENVS where the env factory batches (gentlerl's hand env), else 1",
+        f"{AUTO_NUM_ENVS} where the env factory batches (gentlerl's hand env), else 1",
     )
-    env_threads: int | None = _f(None, "physics threads of a batched env (null: 1 per hand)")
+    env_threads: int | None = _f(
+        None, "physics threads of a batched env (null: 1 per hand, at most 1 per core)"
+    )
     overlap: bool = _f(False, "collect the next batch on a thread while the learner trains")
     total_frames: int = _f(100_000, "env steps of the whole run")
     frames_per_batch: int = _f(200, "env steps per collector batch")
