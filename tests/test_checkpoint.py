@@ -205,9 +205,10 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     state = load_checkpoint(ckpt)
     assert state["counters"]["frames"] == 1600
     assert state["counters"]["updates"] == 0.25 * (1600 - 100)
-    # r+rf learns no model (no 1-step buffer); all but the 5 pending frames are n-step transitions.
+    # r+rf learns no model (no 1-step buffer); all but the 5 pending frames of each of the 4 hands
+    # of the collector env (collector.num_envs automatic) are n-step transitions.
     assert state["model_rb"] is None
-    assert len(state["rb"]["_storage"]["data"]) == 1600 - 5
+    assert len(state["rb"]["_storage"]["data"]) == 1600 - 4 * 5
     # The logs hold each frame count once: rows past the checkpoint were dropped on resume.
     steps = [
         int(r.split(",")[0]) for r in (run_dir / "logs/scalars/train/env_steps_per_s.csv").open()
