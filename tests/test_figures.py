@@ -23,7 +23,7 @@ def _series(frames, values):
 
 
 def test_eval_points_keep_every_evaluation_without_interpolating():
-    # The run: 1.0 logged at 15k and 0.0 at 20k must appear as such (not ~0.94).
+    # A run that logs 1.0 at 15k and 0.0 at 20k must show both (not ~0.94).
     seed0 = _series([5000, 10000, 15000, 20000], [0.0, 0.5, 1.0, 0.0])
     seed1 = _series([5000, 10000, 15000], [0.0, 1.0, 1.0])  # stopped before 20k
     frames, mean, low, high = eval_points([seed0, seed1])
