@@ -19,8 +19,8 @@
 # runs sharing the 2-core Xeon (2026-11-25; 100k frames of the default took 10.3 min): 60k frames
 # ~4.1 min per run, 85 runs / 2 workers ~3 h per --method, ~6 h for both. On a loaded machine it
 # is proportionally slower (at a load average of 8-13 on the 2 cores single runs made 33-50 env
-# frames/s once updates started, 2026-11-27). The grid before issue 11 (57 runs x 25k frames,
-# 3 seeds) measured 52 min.
+# frames/s once updates started, 2026-11-27). The earlier grid (57 runs x 25k frames, 3 seeds,
+# 2026-11-25) measured 52 min.
 # paper: the same grids at the paper's scale (500k frames, batch 256, 1M buffer, ...); about 1 h
 # per run on this CPU, so plan for a cluster or days.
 #
