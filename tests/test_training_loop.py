@@ -284,15 +284,6 @@ def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
     assert (jump <= 0.1 * data["steps_to_next_obs"].squeeze(-1) + 1e-5).all()
 
 
-def test_wandb_logs_offline_by_default(tmp_path, monkeypatch):
-    monkeypatch.setenv("WANDB_SILENT", "true")
-    assert make_config().logging.wandb_mode == "offline"
-    logging = {"wandb_mode": "offline", "eval_episodes": 1}
-    train(tiny_config(tmp_path, logging=logging, collector={"total_frames": 300}), toy_env)
-    (run,) = (tmp_path / "wandb").glob("offline-run-*")
-    assert list(run.glob("*.wandb"))  # the run's records, ready for `wandb sync`
-
-
 @pytest.mark.slow
 def test_default_recipe_learns_touch(tmp_path):
     """The default recipe (touch, r+rf+rsp, cpu scale) on the ``easy`` hand reaches >= 0.8

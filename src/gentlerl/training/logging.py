@@ -1,4 +1,4 @@
-"""Run logging: TorchRL loggers (CSV always, wandb optionally) and per-episode statistics.
+"""Run logging: TorchRL loggers (CSV always, wandb or tensorboard on request) and episode statistics.
 
 Layout of a run directory (read by :mod:`gentlerl.plot`): ``config.yaml``; one CSV per scalar
 under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames collected);
@@ -15,7 +15,7 @@ from typing import Any
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.record.loggers import CSVLogger, Logger
+from torchrl.record.loggers import Logger, get_logger
 
 from gentlerl import keys
 
@@ -23,25 +23,44 @@ EVAL_COLUMNS = ("frames", "episode", "success", "broken", "max_impact", "return"
 
 
 class RunLogger:
-    """Writes scalars to TorchRL's ``CSVLogger`` and, unless disabled, a ``WandbLogger``."""
+    """Scalars to TorchRL's CSV logger and, with ``logger="wandb"`` / ``"tensorboard"``, to that
+    logger too (all through ``torchrl.record.loggers.get_logger``).
+
+    wandb writes under ``run_dir/wandb`` and stays silent unless ``wandb_mode="online"`` (which
+    prints the run's link); tensorboard event files go to ``run_dir/tensorboard``.
+    """
 
     def __init__(
-        self, run_dir: str | Path, config: dict[str, Any], wandb_mode: str, project: str
+        self,
+        run_dir: str | Path,
+        config: dict[str, Any],
+        wandb_mode: str = "offline",
+        project: str = "gentlerl",
+        logger: str = "csv",
     ) -> None:
         self.run_dir = Path(run_dir)
-        self.loggers: list[Logger] = [CSVLogger(exp_name="logs", log_dir=str(self.run_dir))]
-        if wandb_mode != "disabled":
-            from torchrl.record.loggers import WandbLogger
+        self.loggers: list[Logger] = [get_logger("csv", str(self.run_dir), "logs")]
+        if logger == "wandb" and wandb_mode != "disabled":
+            import wandb
 
-            self.loggers.append(
-                WandbLogger(
-                    exp_name=self.run_dir.name,
-                    offline=wandb_mode == "offline",
-                    save_dir=str(self.run_dir),
-                    project=project,
-                    config=config,
-                )
+            quiet = wandb_mode == "offline"
+            wandb_kwargs = dict(
+                offline=quiet, project=project, config=config, settings=wandb.Settings(silent=quiet)
             )
+            self.loggers.append(
+                get_logger("wandb", str(self.run_dir), self.run_dir.name, wandb_kwargs=wandb_kwargs)
+            )
+        elif logger == "tensorboard":
+            try:
+                import tensorboard  # noqa: F401  (torch's SummaryWriter needs it)
+            except ImportError as err:
+                raise ImportError(
+                    "logger=tensorboard needs the tensorboard package: pip install "
+                    "'gentlerl[tensorboard]'"
+                ) from err
+            self.loggers.append(get_logger("tensorboard", str(self.run_dir), "tensorboard"))
+        elif logger not in ("csv", "wandb"):
+            raise ValueError(f"logger must be one of csv, wandb, tensorboard; got {logger!r}")
 
     def log(self, scalars: dict[str, float], step: int) -> None:
         for logger in self.loggers:
@@ -49,9 +68,10 @@ class RunLogger:
                 logger.log_scalar(name, float(value), step=step)
 
     def close(self) -> None:
-        """Finish the wandb run (its offline files are complete afterwards)."""
+        """Finish the wandb run / flush the tensorboard writer (their files are complete after)."""
         for logger in self.loggers[1:]:
-            logger.experiment.finish()
+            experiment = logger.experiment
+            (getattr(experiment, "finish", None) or experiment.close)()
 
     def truncate_after(self, frames: int) -> None:
         """Drop rows logged after ``frames`` (a resumed run re-collects them; no duplicated steps)."""

@@ -94,7 +94,7 @@ class Trainer:
         config = guards.plain(cfg.to_dict())
         (self.run_dir / "config.yaml").write_text(yaml.safe_dump(config))
         log = cfg.logging
-        logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project)
+        logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project, log.logger)
         logger.truncate_after(self.counters["frames"])
         eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, log.eval_episodes)
         if cfg.collector.total_frames > self.counters["frames"]:
@@ -130,7 +130,12 @@ class Trainer:
         next_sync = c["updates"] + col.weight_sync_every
         tracker, recent = EpisodeTracker(self.rewards.reward_keys), deque(maxlen=20)
         pending: dict[str, list[float]] = defaultdict(list)
-        bar = tqdm(total=col.total_frames, initial=c["frames"], disable=not cfg.logging.progress)
+        bar = tqdm(
+            total=col.total_frames,
+            initial=c["frames"],
+            disable=not cfg.logging.progress,
+            unit="frame",
+        )
         start, start_frames = time.perf_counter(), c["frames"]
         for batch in collector:
             batch = self.rewards.transform(batch)
@@ -154,7 +159,7 @@ class Trainer:
             fps = (c["frames"] - start_frames) / max(time.perf_counter() - start, 1e-9)
             self._report(logger, eval_env, pending, fps, batch.numel())
             bar.update(batch.numel())
-            bar.set_postfix(self._postfix(recent, fps))
+            bar.set_postfix(self._postfix(recent))
         bar.close()
 
     def update(self) -> dict[str, float]:
@@ -198,13 +203,12 @@ class Trainer:
         if _crossed(frames, batch_frames, log.checkpoint_every_frames):
             self.save()
 
-    def _postfix(self, recent: deque, fps: float) -> dict[str, str]:
+    def _postfix(self, recent: deque) -> dict[str, str]:
         def mean(name: str) -> float:
             return float(np.mean([e[name] for e in recent])) if recent else 0.0
 
         last = self.eval_history[-1]["success_rate"] if self.eval_history else None
-        return {
-            "fps": f"{fps:.0f}",
+        return {  # the speed is tqdm's own frame/s: one speed on the bar
             "success": f"{mean('success'):.2f}",
             "max_impact": f"{mean('max_impact'):.2f}N",
             "eval": "-" if last is None else f"{last:.2f}",
@@ -243,13 +247,15 @@ class Trainer:
         }
 
     def state_dict(self) -> dict[str, Any]:
-        buffer = self.rewards.buffer
+        """Everything a resumed run needs; the replay buffers only with ``checkpoint_buffer``."""
+        keep = self.cfg.logging.checkpoint_buffer
+        buffer = self.rewards.buffer if keep else None
         return {
             **self._policy_state(),
             "learner": dataclasses.asdict(self.learner.state),
             "intrinsic": self.rewards.state_dict(),
-            "rb": replay_buffer_state(self.rb),
-            "nstep": self.writer.state_dict(),
+            "rb": replay_buffer_state(self.rb) if keep else None,
+            "nstep": self.writer.state_dict() if keep else None,
             "model_rb": replay_buffer_state(buffer) if buffer is not None else None,
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
@@ -261,9 +267,10 @@ class Trainer:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.learner.restore(TrainingState(**state["learner"]))
         self.rewards.load_state_dict(state["intrinsic"])
-        load_replay_buffer_state(self.rb, state["rb"])
-        self.writer.load_state_dict(state["nstep"])
-        if self.rewards.buffer is not None:
+        if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
+            load_replay_buffer_state(self.rb, state["rb"])
+            self.writer.load_state_dict(state["nstep"])
+        if self.rewards.buffer is not None and state["model_rb"] is not None:
             load_replay_buffer_state(self.rewards.buffer, state["model_rb"])
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])

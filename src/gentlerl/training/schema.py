@@ -15,6 +15,8 @@ from gentlerl.training.presets import SCALES
 
 COLLECTORS = ("single", "multi", "ray")
 WANDB_MODES = ("offline", "online", "disabled")
+#: Where scalars go besides the CSV files that gentlerl plot reads (TorchRL ``get_logger`` types).
+LOGGERS = ("csv", "wandb", "tensorboard")
 
 
 def _task_names() -> list[str]:
@@ -136,7 +138,15 @@ class LoggingConfig:
     eval_episodes: int = _f(10, "noise-free episodes per evaluation")
     log_every_updates: int = _f(200, "updates averaged into one row of train/ scalars")
     checkpoint_every_frames: int = _f(10_000, "env steps between checkpoints")
-    wandb_mode: str = _f("offline", "wandb logging (CSV is always written)", WANDB_MODES)
+    checkpoint_buffer: bool = _f(
+        True, "keep the replay buffers in checkpoint.pt (false: much smaller; resume refills them)"
+    )
+    logger: str = _f(
+        "csv", "csv only, or csv and wandb / tensorboard (TorchRL get_logger)", LOGGERS
+    )
+    wandb_mode: str = _f(
+        "offline", "wandb mode with logger=wandb (online prints its link)", WANDB_MODES
+    )
     wandb_project: str = _f("gentlerl", "wandb project")
     progress: bool = _f(True, "show a progress bar")
 
