@@ -185,7 +185,7 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
         "network.actor_hidden=[16]", "network.critic_hidden=[16]", "network.num_atoms=11",
         "replay.buffer_size=5000", "gentleness.model_buffer_size=5000",
         "logging.wandb_mode=disabled", "logging.progress=false", "num_threads=1",
-        "learner.utd_ratio=0.25", "+env.kwargs.time_limit=40",
+        "learner.utd_ratio=0.25", "+env.kwargs.time_limit=40", "collector.num_envs=4",
     ]  # fmt: skip
     env = {**os.environ, "RL_WARNINGS": "0"}
     proc = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -206,7 +206,7 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     assert state["counters"]["frames"] == 1600
     assert state["counters"]["updates"] == 0.25 * (1600 - 100)
     # r+rf learns no model (no 1-step buffer); all but the 5 pending frames of each of the 4 hands
-    # of the collector env (collector.num_envs automatic) are n-step transitions.
+    # of the collector env (collector.num_envs=4) are n-step transitions.
     assert state["model_rb"] is None
     assert len(state["rb"]["_storage"]["data"]) == 1600 - 4 * 5
     # The logs hold each frame count once: rows past the checkpoint were dropped on resume.

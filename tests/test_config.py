@@ -145,15 +145,15 @@ def _compose(overrides):
 
 
 def test_num_envs_needs_a_batching_env_factory():
-    collector = make_config().collector
+    assert make_config().collector.num_envs == 1
+    collector = make_config(collector={"num_envs": None}).collector
     # Automatic (null): 4 hands for gentlerl's hand env, 1 for a factory that cannot batch.
-    assert collector.num_envs is None
     assert collection_env_factory(collector, ToyHandEnv) is ToyHandEnv
     hand = default_env_factory(make_config())
     assert collection_env_factory(collector, hand).keywords["num_envs"] == 4
-    odd = make_config(collector={"frames_per_batch": 201}).collector
+    odd = make_config(collector={"frames_per_batch": 201, "num_envs": None}).collector
     assert collection_env_factory(odd, hand) is hand
-    many = make_config(collector={"env_threads": 64}).collector
+    many = make_config(collector={"env_threads": 64, "num_envs": None}).collector
     with pytest.warns(UserWarning, match="collector.env_threads=64 is more than the"):
         assert collection_env_factory(many, hand).keywords["num_threads"] == available_cores()
     with pytest.raises(ValueError, match="num_envs=4 needs an env factory that takes num_envs"):

@@ -49,7 +49,9 @@ class EnvConfig:
 
 
 #: Hands per collector env when ``collector.num_envs`` is null and the env factory batches: 4 hands
-#: on the 2 physics threads of a 2-core machine (benchmarks/RESULTS.md, "train_speed").
+#: on the 2 physics threads of a 2-core machine (benchmarks/RESULTS.md, "train_speed"). Not the
+#: default: the default recipe with 4 hands did not learn touch in 30k frames on 2 seeds, where one
+#: hand learns it by 20k (README, "Measured numbers").
 AUTO_NUM_ENVS = 4
 
 
@@ -66,7 +68,7 @@ class CollectorConfig:
     memory_per_worker_gb: float = _f(1.0, "ray: memory (GiB) each remote collector reserves")
     weight_sync_every: int = _f(50, "ray: learner updates between weight pushes to the workers")
     num_envs: int | None = _f(
-        None,
+        1,
         "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
         f"{AUTO_NUM_ENVS} where the env factory batches (gentlerl's hand env), else 1",
     )
