@@ -26,12 +26,26 @@ def hand_env():
     """
     from gentlerl.envs import make_env
 
+    yield from closing_builder(make_env)
+
+
+@pytest.fixture
+def driver_env():
+    """``DriverHandEnv`` whose envs (and drivers) are closed when the test ends."""
+    from gentlerl.envs import DriverHandEnv
+
+    yield from closing_builder(DriverHandEnv)
+
+
+def closing_builder(factory):
+    """Yields ``build(*args, **kwargs) -> factory(...)``, then closes every env it built."""
     made = []
 
     def build(*args, **kwargs):
-        made.append(make_env(*args, **kwargs))
+        made.append(factory(*args, **kwargs))
         return made[-1]
 
     yield build
     for env in made:
-        env.close()
+        if not env.is_closed:
+            env.close()

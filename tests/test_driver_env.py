@@ -80,21 +80,6 @@ def sim_calibration():
     return calibration, errors
 
 
-@pytest.fixture
-def driver_env():
-    """``DriverHandEnv`` whose envs (and drivers) are closed when the test ends."""
-    made = []
-
-    def build(*args, **kwargs):
-        made.append(DriverHandEnv(*args, **kwargs))
-        return made[-1]
-
-    yield build
-    for env in made:
-        if not env.is_closed:
-            env.close()
-
-
 def test_specs_match_the_simulated_env_and_check_env_specs(sim_calibration, driver_env, hand_env):
     env = driver_env(SimulatedDriver(seed=0), "touch", calibration=sim_calibration[0])
     check_env_specs(env)
