@@ -7,8 +7,8 @@
 #
 # Grids (default hand calibration `paper`, docs/CALIBRATION.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
-#     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 5 seeds (25 runs
-#     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 59 runs of
+#     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 3 seeds (15 runs
+#     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 39 runs of
 #     30k env frames, 5k of them random, intrinsic rewards on after 1k model updates (~9k frames).
 #   --scale paper (recipes/sweeps/): the paper's grid, lambda'_2 in 3 values each: 85 runs of 500k
 #     frames at the paper's hyper-parameters; about 1 h per run on a 2-core CPU, plan for a cluster.
