@@ -125,6 +125,19 @@ def test_fig3_selection_without_intrinsic_rewards_uses_the_same_frame(tmp_path):
     assert len(after_intrinsic_start([loaded])) == 3  # logged at 1600, 1800, 2000
 
 
+def test_fig3_selection_reads_the_grouped_config_of_current_runs(tmp_path):
+    run = _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0] * 10)
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    config.update(
+        collector={"init_random_frames": 1000},
+        gentleness={"reward_delay": 100, "lam_prime": [2.0, 2.0]},
+        learner={"utd_ratio": 0.25},
+    )
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    (run / "logs" / "scalars" / "train" / "intrinsic_on.csv").write_text("1000,0\n2000,0\n")
+    assert intrinsic_start(load_run(run)) == 1000 + 100 / 0.25
+
+
 def test_fig5_selection_is_the_successful_rollouts_of_the_last_evaluation(tmp_path):
     run = _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0])
     (run / "eval_episodes.csv").write_text(

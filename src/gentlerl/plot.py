@@ -125,10 +125,9 @@ def intrinsic_start(run: Run) -> float:
     frames, on = run.scalars.get("train/intrinsic_on", (np.zeros(0), np.zeros(0)))
     if (on > 0).any():
         return float(frames[np.argmax(on > 0)])
-    cfg = run.config
-    return float(
-        cfg.get("init_random_frames", 0) + cfg.get("reward_delay", 0) / cfg.get("utd_ratio", 1)
-    )
+    warmup = run.setting("collector", "init_random_frames", 0)
+    delay = run.setting("gentleness", "reward_delay", 0)
+    return float(warmup + delay / run.setting("learner", "utd_ratio", 1))
 
 
 def after_intrinsic_start(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
