@@ -73,5 +73,7 @@ for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
     | xargs -P "$workers" -I{} python -m gentlerl.evaluate {} --episodes 20 --seed 0 --json \
     >> "$evals"
 done
+python -m gentlerl.claims "$dir" --final-evals "$figures/$scale/$method" \
+  --markdown "$figures/$scale/$method/claims.md"
 echo "reproduction ($scale, $method) took $(( ($(date +%s) - start) / 60 )) min;" \
   "figures in $figures/$scale/$method"

@@ -30,7 +30,7 @@ def test_the_package_installs_the_gentlerl_command():
 
 def test_top_level_help_lists_every_command(capsys):
     text = _help(capsys)
-    for command in ("train", "sweep", "plot", "video", "evaluate"):
+    for command in ("train", "sweep", "plot", "video", "evaluate", "claims"):
         assert f" {command} " in text
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["fly"])

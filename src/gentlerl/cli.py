@@ -1,4 +1,4 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate} ...``.
+"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims} ...``.
 
 Each subcommand is a module's ``main(argv, prog)``; ``gentlerl COMMAND --help`` prints that
 command's options with their defaults. Modules are imported only when their command runs, so
@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "plot": ("gentlerl.figures", "paper-style figures and a summary table from runs or a sweep"),
     "video": ("gentlerl.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
     "evaluate": ("gentlerl.evaluate", "success, broken rate and impacts of a saved policy"),
+    "claims": ("gentlerl.claims", "the paper's six claims judged on a reproduce.sh grid"),
 }
 
 
