@@ -7,6 +7,7 @@ BioTac-like sensors, calibration) with :class:`SimulatedDriver`.
 import numpy as np
 import pytest
 import torch
+from torchrl.envs import Compose, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
@@ -19,7 +20,7 @@ from gentlerl.envs import (
     SimulatedDriver,
 )
 from gentlerl.envs.sim_driver import calibration_session
-from gentlerl.training.logging import EpisodeTracker
+from gentlerl.training.logging import EpisodeStats, episode_transforms
 from gentlerl.transforms import TouchCalibration
 
 A_FFJ2 = 3  # flexing the first finger's knuckle presses its pad into the block
@@ -233,8 +234,8 @@ def test_episode_statistics_count_watchdog_endings(driver_env):
     watchdog = ForceWatchdog(fingertip_limit=None, block_limit=8.0)
     driver = FakeDriver([[0.0] * 5], block=[0.0, 0.0, 9.0])
     env = driver_env(driver, "touch", calibration=_linear_calibration(), watchdog=watchdog)
-    batch = env.rollout(5, break_when_any_done=True)
+    batch = TransformedEnv(env, Compose(*episode_transforms())).rollout(5, break_when_any_done=True)
     batch.set(("collector", "traj_ids"), torch.zeros(len(batch), dtype=torch.long))
     batch.set(("next", keys.IMPACT), torch.zeros(len(batch), 5))
-    (episode,) = EpisodeTracker([keys.REWARD]).update(batch)
+    (episode,) = EpisodeStats([keys.REWARD]).update(batch)
     assert episode["watchdog"] == 1.0 and episode["length"] == 2

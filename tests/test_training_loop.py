@@ -9,13 +9,14 @@ import torch
 import yaml
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
-from torchrl.envs import TransformedEnv
+from torchrl.collectors import Collector
+from torchrl.envs import Compose, TransformedEnv
 
 from gentlerl import keys
 from gentlerl.training import Trainer, load_policy, make_config, train
 from gentlerl.training.config import iter_fields
 from gentlerl.training.evaluation import evaluate
-from gentlerl.training.logging import EVAL_COLUMNS, EpisodeTracker
+from gentlerl.training.logging import EVAL_COLUMNS, EpisodeStats, episode_transforms
 from gentlerl.transforms import ImpactPenalty
 from tests.toy_env import ToyHandEnv
 
@@ -214,31 +215,62 @@ def test_intrinsic_rewards_switch_on_after_the_reward_delay(finished_run):
     assert trainer.rewards.intrinsic_on and trainer.counters["updates"] == 400
 
 
-def test_episode_tracker_spans_batches():
-    def batch(traj, reward, touch0, done):
+def test_episode_stats_span_batches():
+    def batch(traj, reward, touch0, done, steps, running_return):
         n = len(traj)
         touch = torch.zeros(n, 5, 3)
         touch[:, 0, 0] = torch.tensor(touch0)
+        reward = torch.tensor(reward).reshape(n, 1)
         nxt = {
-            keys.REWARD: torch.tensor(reward).reshape(n, 1),
+            keys.REWARD: reward,
             keys.PENALTY: -torch.ones(n, 1),
             keys.IMPACT: touch[:, :, 0],
-            keys.SUCCESS: torch.tensor(reward).reshape(n, 1) > 0,
+            keys.SUCCESS: reward > 0,
             keys.BROKEN: torch.zeros(n, 1, dtype=torch.bool),
             keys.DONE: torch.tensor(done).reshape(n, 1),
+            # What StepCounter / RewardSum write: the running length and task return.
+            "step_count": torch.tensor(steps).reshape(n, 1),
+            "episode_reward": torch.tensor(running_return).reshape(n, 1),
         }
         return TensorDict({("collector", "traj_ids"): torch.tensor(traj), "next": nxt}, [n])
 
-    tracker = EpisodeTracker([keys.REWARD, keys.PENALTY])
-    assert tracker.update(batch([0, 0, 0], [0.0, 0.0, 0.0], [1.0, 4.0, 2.0], [0, 0, 0])) == []
-    finished = tracker.update(batch([0, 1, 1], [1.0, 0.0, 0.0], [3.0, 0.5, 0.0], [1, 0, 1]))
-    assert finished == [
+    tracker = EpisodeStats([keys.REWARD, keys.PENALTY])
+    first = batch([0, 0, 0], [0.0, 0.0, 0.0], [1.0, 4.0, 2.0], [0, 0, 0], [1, 2, 3], [0, 0, 0])
+    assert tracker.update(first) == []
+    second = batch([0, 1, 1], [1.0, 0.0, 0.0], [3.0, 0.5, 0.0], [1, 0, 1], [4, 1, 2], [1, 0, 0])
+    assert tracker.update(second) == [
         # Episode 0: 4 steps, max impact 4 N (second step), success on its last step.
         dict(return_reward=1.0, return_penalty=-4.0, success=1.0, broken=0.0, max_impact=4.0,
              length=4.0),
         dict(return_reward=0.0, return_penalty=-2.0, success=0.0, broken=0.0, max_impact=0.5,
              length=2.0),
     ]  # fmt: skip
+
+
+def test_episode_stats_of_a_collector_match_its_trajectories():
+    # 7-step episodes collected 5 frames at a time: every episode spans two or three batches.
+    env = TransformedEnv(ToyHandEnv(time_limit=7), Compose(*episode_transforms(), ImpactPenalty()))
+    press = torch.zeros(20)
+    press[1:5] = 1.0  # fingertips 1-4 pass the wall at step 6: impacts, no success
+    policy = TensorDictModule(
+        lambda obs: press.expand(*obs.shape[:-1], 20), ["observation"], ["action"]
+    )
+    collector = Collector(
+        env, policy, frames_per_batch=5, total_frames=35, auto_register_policy_transforms=False
+    )
+    tracker, batches, episodes = EpisodeStats([keys.REWARD, keys.PENALTY]), [], []
+    for data in collector:
+        batches.append(data)
+        episodes += tracker.update(data)
+    collector.shutdown()
+    data = torch.cat(batches)
+    assert [e["length"] for e in episodes] == [7.0] * 5
+    for tid, ep in enumerate(episodes):
+        steps = data[data["collector", "traj_ids"] == tid]["next"]
+        assert ep["return_reward"] == pytest.approx(steps[keys.REWARD].sum().item())
+        assert ep["return_penalty"] == pytest.approx(steps[keys.PENALTY].sum().item())
+        assert ep["max_impact"] == pytest.approx(steps[keys.IMPACT].max().item())
+        assert ep["return_penalty"] < 0 and ep["max_impact"] > 0
 
 
 def test_evaluation_is_deterministic_with_hand_computed_numbers():

@@ -14,6 +14,7 @@ from torchrl.envs import EnvBase, TransformedEnv
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.training.config import CollectorConfig, TrainConfig
+from gentlerl.training.logging import episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.training.schema import AUTO_NUM_ENVS
 from gentlerl.transforms import ImpactPenalty
@@ -39,9 +40,13 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
 
 
 def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
-    """``env_factory()`` seeded before anything resets it (collectors reset the env they build)."""
+    """``env_factory()`` seeded before anything resets it (collectors reset the env they build),
+    with the :func:`~gentlerl.training.logging.episode_transforms` the episode statistics read."""
     env = env_factory()
     env.set_seed(seed)
+    env = TransformedEnv(env)
+    for transform in episode_transforms():
+        env.append_transform(transform)
     return env
 
 

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import csv
 import os
-from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
 import torch
 from tensordict import TensorDictBase
+from torchrl.envs.transforms import RewardSum, StepCounter, Transform
 from torchrl.record.loggers import Logger, get_logger
 
 from gentlerl import keys
@@ -108,51 +108,67 @@ class RunLogger:
                 )
 
 
-class EpisodeTracker:
-    """Accumulates per-episode statistics over collector batches (episodes span batches).
+#: What :func:`episode_transforms` write (at the root and under ``"next"``); read, then dropped.
+EPISODE_KEYS = ("step_count", f"episode_{keys.REWARD}")
 
-    Episodes are told apart by the collector's trajectory ids (and the batch row, one per
-    worker, for ``[workers, T]`` batches); an episode is reported once its
-    ``("next", "done")`` flag is seen. Per episode: the return of each reward component, success,
-    broken, the maximum impact over steps and sites (N), and the length; with a force watchdog
-    (``DriverHandEnv``), ``watchdog``: whether it ended the episode.
+
+def episode_transforms() -> list[Transform]:
+    """TorchRL's ``StepCounter`` and ``RewardSum`` (of the env's ``reward``) for the collection env.
+
+    They write ``("next", "step_count")`` and ``("next", "episode_reward")``, which
+    :class:`EpisodeStats` reads at the end of each episode as its length and task return.
+    A list, to append one by one: TorchRL cannot find the parent env of a ``Compose`` nested first
+    in another.
+    """
+    return [StepCounter(), RewardSum(in_keys=[keys.REWARD])]
+
+
+class EpisodeStats:
+    """Per-episode statistics of collected batches (episodes span batches).
+
+    Length and task return come from the collection env's :func:`episode_transforms`, read at the
+    step whose ``("next", "done")`` is set. What those transforms cannot give is accumulated here,
+    per trajectory (the collector's trajectory ids, and the batch row, one per worker, for
+    ``[workers, T]`` batches):
+
+    - the returns of the other reward components (``penalty``, the surprises): they are written
+      by the reward transforms on collected batches, with the learner's current models, not by
+      the env, so an env-side ``RewardSum`` never sees them;
+    - maxima over the episode (success, broken, the impact over steps and sites in N, and with a
+      force watchdog, ``DriverHandEnv``, whether it ended the episode): ``RewardSum`` only sums
+      reward entries.
     """
 
     def __init__(self, reward_keys: list[str]) -> None:
-        self.reward_keys = list(dict.fromkeys([keys.REWARD, *reward_keys]))
-        self._open: dict[int, dict[str, float]] = defaultdict(self._empty)
-
-    def _empty(self) -> dict[str, float]:
-        stats = {f"return_{k}": 0.0 for k in self.reward_keys}
-        stats.update(success=0.0, broken=0.0, max_impact=0.0, length=0.0)
-        return stats
+        self.summed = [k for k in dict.fromkeys(reward_keys) if k != keys.REWARD]
+        self._open: dict[int, dict[str, float]] = {}
 
     def update(self, batch: TensorDictBase) -> list[dict[str, float]]:
+        """Accumulate a batch; returns the statistics of the episodes it ends, in trajectory order."""
         traj = batch.get(("collector", "traj_ids"))
         if batch.ndim == 2:  # [workers, T]: Ray workers number their trajectories independently
             traj = traj + (torch.arange(batch.shape[0]) << 40).unsqueeze(-1)
-        batch, traj = batch.reshape(-1), traj.reshape(-1)
-        nxt = batch.get("next")
+        nxt, traj = batch.get("next").reshape(-1), traj.reshape(-1)
         done = nxt.get(keys.DONE).reshape(-1)
-        columns = {f"return_{k}": nxt.get(k).reshape(-1) for k in self.reward_keys}
-        impact = nxt.get(keys.IMPACT).reshape(len(batch), -1).amax(-1)
-        success = nxt.get(keys.SUCCESS).reshape(-1).float()
-        broken = nxt.get(keys.BROKEN).reshape(-1).float()
-        watchdog = nxt.get(keys.WATCHDOG, None)
-        if watchdog is not None:
-            watchdog = watchdog.reshape(-1).float()
+        sums = {f"return_{k}": nxt.get(k).reshape(-1) for k in self.summed}
+        maxima = {
+            "success": nxt.get(keys.SUCCESS).reshape(-1).float(),
+            "broken": nxt.get(keys.BROKEN).reshape(-1).float(),
+            "max_impact": nxt.get(keys.IMPACT).reshape(len(nxt), -1).amax(-1),
+        }
+        if keys.WATCHDOG in nxt.keys():
+            maxima["watchdog"] = nxt.get(keys.WATCHDOG).reshape(-1).float()
         finished = []
         for tid in torch.unique(traj).tolist():
             mask = traj == tid
-            stats = self._open[tid]
-            for name, column in columns.items():
+            stats = self._open.setdefault(tid, dict.fromkeys([*sums, *maxima], 0.0))
+            for name, column in sums.items():
                 stats[name] += column[mask].sum().item()
-            stats["max_impact"] = max(stats["max_impact"], impact[mask].max().item())
-            stats["success"] = max(stats["success"], success[mask].max().item())
-            stats["broken"] = max(stats["broken"], broken[mask].max().item())
-            stats["length"] += mask.sum().item()
-            if watchdog is not None:
-                stats["watchdog"] = max(stats.get("watchdog", 0.0), watchdog[mask].max().item())
+            for name, column in maxima.items():
+                stats[name] = max(stats[name], column[mask].max().item())
             if done[mask].any():
+                last = nxt[(mask & done).nonzero()[0, 0]]
+                stats["return_reward"] = last.get(f"episode_{keys.REWARD}").item()
+                stats["length"] = float(last.get("step_count").item())
                 finished.append(self._open.pop(tid))
         return finished

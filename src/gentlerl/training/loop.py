@@ -39,7 +39,7 @@ from gentlerl.training.checkpoint import (
 )
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.evaluation import evaluate, rank
-from gentlerl.training.logging import EpisodeTracker, RunLogger
+from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger
 from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
 
 CHECKPOINT = "checkpoint.pt"
@@ -128,7 +128,7 @@ class Trainer:
         if col.kind == "ray":
             collector.update_policy_weights_()  # workers start from the learner's current actor
         next_sync = c["updates"] + col.weight_sync_every
-        tracker, recent = EpisodeTracker(self.rewards.reward_keys), deque(maxlen=20)
+        tracker, recent = EpisodeStats(self.rewards.reward_keys), deque(maxlen=20)
         pending: dict[str, list[float]] = defaultdict(list)
         bar = tqdm(
             total=col.total_frames,
@@ -144,6 +144,7 @@ class Trainer:
             for ep in tracker.update(batch):
                 logger.log({f"episode/{k}": v for k, v in ep.items()}, c["frames"])
                 recent.append(ep)
+            batch = batch.exclude(*EPISODE_KEYS, *[("next", k) for k in EPISODE_KEYS])
             self.rewards.extend(batch)
             rewards = [("next", k) for k in self.rewards.reward_keys]
             self.writer.extend(batch.select(*AGENT_KEYS, *rewards))
