@@ -25,6 +25,7 @@ from typing import Any
 
 import yaml
 
+from gentlerl.cli import command_parser
 from gentlerl.training.loop import DONE_MARKER
 
 
@@ -125,11 +126,7 @@ def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) ->
 
 
 def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description=__doc__.splitlines()[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
+    parser = command_parser(prog, __doc__.splitlines()[0])
     parser.add_argument("sweep", help="a wandb grid sweep YAML (recipes/sweeps/*.yaml)")
     parser.add_argument("--out", default="runs/sweeps", help="root folder of the run directories")
     parser.add_argument("--workers", type=int, default=1, help="runs in parallel")

@@ -21,6 +21,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
+from gentlerl.cli import command_parser
 from gentlerl.envs import HandEnv, make_env
 from gentlerl.envs.assets import FINGERTIPS
 from gentlerl.functional import impact
@@ -170,11 +171,7 @@ def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: int = 20) -
 
 
 def build_parser(prog: str = "gentlerl video") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description=__doc__.splitlines()[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
+    parser = command_parser(prog, __doc__.splitlines()[0])
     parser.add_argument("checkpoint", help="a run's checkpoint.pt or best_policy.pt")
     parser.add_argument("-o", "--out", default="rollout.mp4", help="output file, .mp4 or .gif")
     parser.add_argument("--episodes", type=int, default=2, help="evaluation episodes to record")

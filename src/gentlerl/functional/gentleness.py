@@ -17,17 +17,6 @@ import math
 
 import torch
 
-__all__ = [
-    "acceptability",
-    "force_penalty",
-    "gaussian_nll",
-    "impact",
-    "impact_penalty",
-    "mixture_moments",
-    "penalty_surprise",
-    "torque_penalty",
-]
-
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
