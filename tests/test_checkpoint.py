@@ -12,6 +12,7 @@ import torch
 from tensordict import TensorDict
 
 from gentlerl.data import make_replay_buffer
+from gentlerl.models import make_actor
 from gentlerl.training import Trainer, load_checkpoint, load_policy, save_checkpoint
 from gentlerl.training.checkpoint import (
     CheckpointError,
@@ -214,3 +215,24 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
         int(r.split(",")[0]) for r in (run_dir / "logs/scalars/train/env_steps_per_s.csv").open()
     ]
     assert steps == list(range(100, 1601, 100))
+
+
+def test_a_policy_saved_with_the_flat_config_of_older_versions_loads(tmp_path):
+    actor = make_actor(63, 20, (16, 8))
+    flat = dict(  # field names as older versions saved them, one level, no groups
+        task="touch", variant="r+rf+rsp", seed=3, scale="cpu", collector="multi",
+        env_kwargs={"time_limit": 100}, total_frames=5000, batch_size=64, actor_hidden=[16, 8],
+        lam=[2.0, 1.0], penalty_v_max=None, wandb_project="gentlerl",
+    )  # fmt: skip
+    state = {"config": flat, "obs_dim": 63, "action_dim": 20, "actor": actor.state_dict()}
+    save_checkpoint(tmp_path / "best_policy.pt", state)
+    cfg, loaded = load_policy(tmp_path / "best_policy.pt")
+    assert (cfg.seed, cfg.collector.kind, cfg.collector.total_frames) == (3, "multi", 5000)
+    assert cfg.env.kwargs == {"time_limit": 100} and cfg.replay.batch_size == 64
+    assert cfg.gentleness.lam == (2.0, 1.0) and cfg.network.bounded_support is False
+    obs = TensorDict({"observation": torch.randn(4, 63)}, [4])
+    assert torch.equal(loaded(obs.clone())["action"], actor(obs.clone())["action"])
+    flat["no_such_field"] = 1
+    save_checkpoint(tmp_path / "best_policy.pt", state)
+    with pytest.raises(ValueError, match="unknown config field.*'no_such_field'"):
+        load_policy(tmp_path / "best_policy.pt")

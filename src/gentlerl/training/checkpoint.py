@@ -22,7 +22,7 @@ from torchrl.data import ReplayBuffer
 
 from gentlerl.data.prioritized import FlatPriorityTree
 from gentlerl.models import make_actor
-from gentlerl.training.config import TrainConfig, make_config
+from gentlerl.training.config import TrainConfig, group_flat_config, make_config
 
 
 class CheckpointError(ValueError):
@@ -148,7 +148,8 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
     """The run's config and its deterministic actor (no exploration noise).
 
     ``path`` is a run's ``checkpoint.pt`` (the last actor) or ``best_policy.pt`` (the actor of its
-    best evaluation).
+    best evaluation), also one saved with the flat config of older versions
+    (:func:`~gentlerl.training.config.group_flat_config`).
 
     Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env.kwargs)``.
     """
@@ -156,7 +157,7 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
     missing = [k for k in ("config", "obs_dim", "action_dim", "actor") if k not in state]
     if missing:
         raise CheckpointError(f"{path} is not a gentlerl policy file: it lacks {missing}")
-    cfg = make_config(**state["config"])
+    cfg = make_config(**group_flat_config(state["config"]))
     actor = make_actor(state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
     actor.load_state_dict(state["actor"])
     return cfg, actor.eval()

@@ -42,6 +42,7 @@ __all__ = [
     "ReplayConfig",
     "TrainConfig",
     "get",
+    "group_flat_config",
     "iter_fields",
     "make_config",
     "validate",
@@ -86,6 +87,34 @@ def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
     cfg = TrainConfig(**values, **groups)
     validate(cfg)
     return cfg
+
+
+#: Flat field names of configs saved before the grouping whose grouped name is not the same name.
+_RENAMED = {"collector": ("collector", "kind"), "env_kwargs": ("env", "kwargs")}
+
+
+def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
+    """A config saved before the fields were grouped (older checkpoints), as :func:`make_config`
+    takes it: each flat field moved into the group that holds that name now.
+
+    ``penalty_v_max`` (the penalty head's top, null for none) becomes ``network.bounded_support``
+    (null: false, else true). A grouped config comes back unchanged; a name no group holds stays
+    at the top level, where :func:`make_config` reports it.
+    """
+    if all(isinstance(values.get(group), dict) for group in GROUPS):
+        return dict(values)
+    owner = {f.name: (g, f.name) for g, cls in GROUPS.items() for f in dataclasses.fields(cls)}
+    owner.update(_RENAMED)
+    grouped: dict[str, Any] = {}
+    for name, value in values.items():
+        if name == "penalty_v_max":
+            name, value = "bounded_support", value is not None
+        if name in owner:
+            group, field = owner[name]
+            grouped.setdefault(group, {})[field] = value
+        else:
+            grouped[name] = value
+    return grouped
 
 
 _POSITIVE = (
