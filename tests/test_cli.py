@@ -72,6 +72,7 @@ def test_plot_command_writes_the_figure_set(tmp_path, capsys):
     assert cli.main(["plot", str(tmp_path / "runs"), "-o", str(tmp_path / "figs")]) == 0
     names = sorted(p.name for p in (tmp_path / "figs").iterdir())
     assert names == [
+        "final_impacts.png",
         "impact_histograms.png",
         "learning_curves.png",
         "reward_components.png",

@@ -4,17 +4,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
-from gentlerl.figures import (
-    build_parser,
+from gentlerl.curves import (
     distinct_metrics,
     eval_points,
+    learning_curve_panels,
     learning_curves_figure,
-    main,
-    resolve_run_paths,
     seeds_label,
 )
-from gentlerl.plot import find_runs
+from gentlerl.figures import build_parser, main, resolve_run_paths
+from gentlerl.plot import find_runs, group_runs
 from tests.test_plot import _fake_run
 
 
@@ -33,20 +33,72 @@ def test_eval_points_keep_every_evaluation_without_interpolating():
     assert all(len(a) == 0 for a in eval_points([]))
 
 
-def test_learning_curve_line_passes_through_the_seed_means_at_the_evaluated_frames(tmp_path):
+def test_learning_curves_are_points_with_min_max_bars_not_lines(tmp_path):
     _fake_run(tmp_path, "r", 0, 2.0, (0.0, 1.0, 0.0), [1.0])
     _fake_run(tmp_path, "r", 1, 2.0, (0.0, 0.5, 1.0), [1.0])
     fig = learning_curves_figure(find_runs([tmp_path]))
-    ax = fig.axes[0]  # success rate (the fake return, 0 / 0.5 / 1, gets a second panel)
-    assert len(fig.axes) == 2
-    mean_line, *seed_points = ax.lines
-    assert mean_line.get_xydata().tolist() == [[1000, 0.0], [2000, 0.75], [3000, 0.5]]
-    assert mean_line.get_marker() == "o"
-    assert sorted(p.get_ydata().tolist() for p in seed_points) == [[0.0, 0.5, 1.0], [0.0, 1.0, 0.0]]
-    assert seed_points[0].get_linestyle() == "None"  # points, not a curve
-    band = ax.collections[0].get_paths()[0].vertices
-    assert band[:, 1].min() == 0.0 and band[:, 1].max() == 1.0  # min-max over seeds
-    assert ax.get_legend().get_texts()[0].get_text() == "touch: r (2 seeds)"
+    assert len(fig.axes) == 2  # success rate, and the fake return (0 / 0.5 / 1) that differs
+    (bars,) = fig.axes[0].containers
+    points = bars.lines[0]
+    assert points.get_xydata().tolist() == [[1000, 0.0], [2000, 0.75], [3000, 0.5]]
+    assert points.get_linestyle() == "None" and points.get_marker() == "o"  # nothing between
+    segments = [s.tolist() for s in bars.lines[2][0].get_segments()]  # min-max over seeds
+    assert segments == [[[1000, 0.0], [1000, 0.0]], [[2000, 0.5], [2000, 1.0]],
+                        [[3000, 0.0], [3000, 1.0]]]  # fmt: skip
+    legend = fig.axes[1].get_legend()  # under the bottom panel, outside the data
+    assert legend.get_texts()[0].get_text() == "r (2 seeds)"
+    assert legend.get_bbox_to_anchor().y0 < fig.axes[1].get_window_extent().y0
+
+
+def _grid(root, task, variants, lams):
+    for variant in variants:
+        for lam2 in lams if "rsp" in variant else (2.0,):
+            run = _fake_run(root / task, variant, 0, lam2, (0.0, 1.0, 1.0), [1.0])
+            config = yaml.safe_load((run / "config.yaml").read_text())
+            (run / "config.yaml").write_text(yaml.safe_dump({**config, "task": task}))
+
+
+def _bands(ax):
+    """The variants in a panel's legend (without the seed count)."""
+    return [t.get_text().rsplit(" (", 1)[0] for t in ax.get_legend().get_texts()]
+
+
+REWARD_VARIANTS = ("r", "r+rf", "r+rf+rs", "r+icm", "r+rf+rsp")
+
+
+def test_one_panel_per_claim_with_at_most_four_bands(tmp_path):
+    _grid(tmp_path, "touch", REWARD_VARIANTS, (1.5, 2.0, 3.0))
+    _grid(tmp_path, "fragile", REWARD_VARIANTS, (1.0, 1.5, 2.0))
+    _grid(tmp_path, "explore", ("rs", "rf+rs", "rf+rsp"), (2.0, 3.0, 4.0))
+    runs = find_runs([tmp_path])
+    titles = [title for title, _ in learning_curve_panels(group_runs(runs))]
+    assert titles == [
+        "explore: variants", "explore: variants",  # no claim compares these: 5 in 3 + 2
+        "fragile: claim 4: the penalty alone",
+        "fragile: claim 5: penalty surprise vs task only",
+        "fragile: claim 6: curiosity baselines",
+        "touch: claim 4: the penalty alone",
+        "touch: claim 5: penalty surprise vs task only",
+        "touch: claim 6: curiosity baselines",
+    ]  # fmt: skip
+    fig = learning_curves_figure(runs)
+    assert len(fig.axes) == 8 * 2  # success and (fake) return per panel
+    bands = [_bands(ax) for ax in fig.axes[8:]]  # the bottom row carries the legends
+    assert [len(b) for b in bands] == [3, 2, 3, 4, 3, 3, 4, 3]
+    assert bands[5] == ["r", "r+rf", "r+rf+rs"]
+    rsp = "r+rf+rsp (λ'₂={})".format
+    assert bands[6] == ["r", rsp("1.5"), rsp(2), rsp(3)]
+    assert bands[7] == ["r", "r+icm", rsp(2)]  # claim 6 at the primary lambda'_2 of touch
+    assert bands[4] == ["r", "r+icm", rsp("1.5")]  # and of fragile
+    assert all(len(ax.containers) == len(b) for ax, b in zip(fig.axes[8:], bands, strict=True))
+
+
+def test_a_claim_with_more_lambdas_than_bands_is_split(tmp_path):
+    _grid(tmp_path, "touch", ("r", "r+rf+rsp"), (1.0, 1.5, 2.0, 3.0, 4.0))
+    panels = learning_curve_panels(group_runs(find_runs([tmp_path])))
+    assert [len(keys) for _, keys in panels] == [4, 3]  # r repeated in both
+    assert all(keys[0] == ("touch", "r") for _, keys in panels)
+    assert len({title for title, _ in panels}) == 1  # claim 6 (r, rsp at 2) is already shown
 
 
 def _fake_run_with_return(tmp_path, name, success, returns):
@@ -62,7 +114,7 @@ def test_return_panel_only_where_it_differs_from_success(tmp_path):
     assert distinct_metrics(runs, metrics) == metrics[:1]
     assert len(learning_curves_figure(runs).axes) == 1
     assert learning_curves_figure(runs).axes[0].get_legend().get_texts()[0].get_text() == (
-        "touch: r (1 seed)"
+        "r (1 seed)"
     )
     _fake_run_with_return(tmp_path, "fragile", (0.0, 1.0, 0.5), (-3.0, 1.0, 0.5))
     assert distinct_metrics(find_runs([tmp_path]), metrics) == metrics

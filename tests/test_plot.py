@@ -8,15 +8,16 @@ from gentlerl.figures import main
 from gentlerl.plot import (
     after_intrinsic_start,
     final_eval_episodes,
+    final_policy_episodes,
     find_runs,
-    format_table,
     intrinsic_start,
     load_run,
-    max_impacts,
     seed_band,
     successful_final_impacts,
-    summary_table,
 )
+from gentlerl.summary import format_table, summary_table
+
+EPISODES_HEADER = "frames,episode,success,broken,max_impact,return\n"
 
 
 def _fake_run(root, variant, seed, lam2, success, impacts, **config):
@@ -39,36 +40,41 @@ def _fake_run(root, variant, seed, lam2, success, impacts, **config):
     return run
 
 
-def test_seeds_are_grouped_and_summarised(tmp_path):
-    _fake_run(tmp_path, "r+rf+rsp", 0, 2.0, (0.0, 0.5, 1.0), [0.0, 1.0, 3.0])
-    _fake_run(tmp_path, "r+rf+rsp", 1, 2.0, (0.0, 0.5, 0.5), [2.0, 0.0])
-    _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [5.0])
-    runs = find_runs([tmp_path])
-    rows = {r["variant"]: r for r in summary_table(runs)}
-    assert rows["r+rf+rsp (λ'₂=2)"]["seeds"] == 2
-    assert rows["r+rf+rsp (λ'₂=2)"]["final_success"] == pytest.approx(0.75)  # mean of 1.0 and 0.5
-    # zero-impact rollouts are ignored: (1 + 3 + 2) / 3 = 2.0
-    assert rows["r+rf+rsp (λ'₂=2)"]["mean_max_impact"] == pytest.approx(2.0)
-    assert rows["r"]["seeds"] == 1 and rows["r"]["mean_max_impact"] == 5.0
-    assert sorted(max_impacts(runs).tolist()) == [1.0, 2.0, 3.0, 5.0]
-
-
-def test_summary_leaves_out_the_random_warmup_and_reports_the_claims_numbers(tmp_path):
-    # Rollouts end at frames 200, 400, ...: the first two are random warm-up (<= 400 frames).
-    impacts = [9.0, 9.0, 0.0, 1.0, 2.0, 6.0, 0.0, 4.0]
-    _fake_run(tmp_path, "rs", 0, 2.0, (0.0, 1.0, 0.5), impacts, init_random_frames=400)
-    _fake_run(tmp_path, "rs", 1, 2.0, (0.0, 0.0, 0.9), [0.0, 3.0], init_random_frames=400)
-    runs = find_runs([tmp_path])
-    assert sorted(max_impacts(runs).tolist()) == [1.0, 2.0, 4.0, 6.0]  # the 9 N warm-up is gone
-    (row,) = summary_table(runs)
-    assert row["rollouts"] == 6  # 6 after warm-up for seed 0, none for seed 1
-    assert row["contact_share"] == pytest.approx(4 / 6)
-    assert row["median_max_impact"] == pytest.approx(3.0)
-    assert row["share_over_5N"] == pytest.approx(0.25)
+def test_summary_reports_the_fig3_and_fig5_selections(tmp_path):
+    # Rollouts are logged at 200, 400, ..., 2000 frames; the intrinsic rewards switch on at 1500.
+    run0 = _fake_run(tmp_path, "rs", 0, 2.0, (0.0, 1.0, 0.5), [9.0] * 7 + [0.0, 4.0, 6.0])
+    run1 = _fake_run(tmp_path, "rs", 1, 2.0, (0.0, 0.0, 0.9), [9.0] * 7 + [12.0, 2.0, 0.0])
+    (run0 / "logs/scalars/episode/broken.csv").write_text("200,1\n1600,0\n1800,1\n2000,0\n")
+    # seed 0: only its last in-loop evaluation; seed 1: the evaluate episodes win over it.
+    (run0 / "eval_episodes.csv").write_text(EPISODES_HEADER + "3000,0,1,0,1.5,1\n3000,1,0,1,4,0\n")
+    (run1 / "eval_episodes.csv").write_text(EPISODES_HEADER + "3000,0,1,0,9.0,1\n")
+    (run1 / "final_eval_episodes.csv").write_text(
+        EPISODES_HEADER + "3000,0,1,0,2.5,1\n3000,1,1,0,3.5,1\n3000,2,0,0,0,0\n3000,3,1,0,5.5,1\n"
+    )
+    (row,) = summary_table(find_runs([tmp_path]))
+    assert row["final_success"] == pytest.approx((0.5 + 0.75) / 2)
+    assert row["final_source"] == "mixed" and row["final_episodes"] == 6
+    assert row["final_successful"] == 4  # 1.5 | 2.5, 3.5, 5.5
+    assert row["final_successful_median_impact"] == pytest.approx(3.0)
     assert row["mean_eval_success"] == pytest.approx((0.5 + 0.3) / 2)
-    assert row["seeds_reaching_0.8"] == 2
-    assert row["first_0.8_frames"] == pytest.approx((2000 + 3000) / 2)
-    assert format_table([row]).splitlines()[2].startswith("| touch | rs | 2 | 0.70 |")
+    assert row["seeds_reaching_0.8"] == 2 and row["first_0.8_frames"] == pytest.approx(2500)
+    # After the switch: 0, 4, 6 | 12, 2, 0; the 9 N rollouts before it are left out.
+    assert row["switch_frames"] == 1500 and row["rollouts_after_switch"] == 6
+    assert row["touching_share_after_switch"] == pytest.approx(4 / 6)
+    assert row["median_impact_after_switch"] == pytest.approx(5.0)
+    assert row["share_under_5N_after_switch"] == pytest.approx(0.5)
+    assert row["share_5_15N_after_switch"] == pytest.approx(0.5)
+    assert row["broken_share_after_switch"] == pytest.approx(1 / 3)
+    assert format_table([row]).splitlines()[2].startswith("| touch | rs | 2 | 0.62 | mixed | 6 |")
+
+
+def test_a_variant_without_data_reads_nan_not_zero(tmp_path):
+    _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0])  # one rollout, before the switch
+    (row,) = summary_table(find_runs([tmp_path]))
+    assert row["final_source"] == "none" and row["final_episodes"] == 0
+    for name in ("final_success", "final_successful_median_impact", "median_impact_after_switch"):
+        assert np.isnan(row[name]), name
+    assert row["rollouts_after_switch"] == 0 and np.isnan(row["touching_share_after_switch"])
 
 
 def test_seed_band_interpolates_on_a_common_grid():
@@ -87,6 +93,7 @@ def test_cli_writes_the_three_figures_and_a_summary(tmp_path):
     for name in ("impact_histograms.png", "learning_curves.png", "reward_components.png"):
         assert (out / name).stat().st_size > 5_000  # a real image, not an empty canvas
     assert "r+rf+rsp" in (out / "summary.csv").read_text()
+    assert (out / "final_impacts.png").stat().st_size > 5_000
     assert "| touch | r+rf+rsp (λ'₂=3) | 1 |" in (out / "summary.md").read_text()
 
 
@@ -150,3 +157,14 @@ def test_fig5_selection_is_the_successful_rollouts_of_the_last_evaluation(tmp_pa
     assert final_eval_episodes(runs[0])["frames"].tolist() == [3000.0] * 3
     assert successful_final_impacts(runs).tolist() == [1.5, 2.5]
     assert len(final_eval_episodes(load_run(other))) == 0
+
+
+def test_fig5_prefers_the_evaluate_episodes_unless_they_are_older_than_the_run(tmp_path):
+    run = _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0])
+    (run / "eval_episodes.csv").write_text(EPISODES_HEADER + "3000,0,1,0,1.0,1\n")
+    (run / "final_eval_episodes.csv").write_text(EPISODES_HEADER + "2000,0,1,0,7.0,1\n")
+    rows, source = final_policy_episodes(load_run(run))  # evaluated an actor of 2000 frames
+    assert source == "in-loop" and rows["max_impact"].tolist() == [1.0]
+    (run / "final_eval_episodes.csv").write_text(EPISODES_HEADER + "3000,0,1,0,7.0,1\n")
+    rows, source = final_policy_episodes(load_run(run))
+    assert source == "evaluate" and successful_final_impacts([load_run(run)]).tolist() == [7.0]

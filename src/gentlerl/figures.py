@@ -2,14 +2,17 @@
 
 Draws what :mod:`gentlerl.plot` reads from run directories (or a sweep's runs). Figures (PNG):
 
-- ``impact_histograms.png`` — maximum impact per training rollout (N) after the random warm-up
-  (``init_random_frames``), rollouts with zero impact ignored, one panel per variant, lambda'_2
-  values overlaid (paper Figs. 3 and 5);
-- ``learning_curves.png`` — evaluation success rate (and return, where it differs) vs env frames:
-  every evaluation a point, a line through the mean over seeds, a min-max band (paper Fig. 4);
-- ``reward_components.png`` — mean of each reward component in the sampled batches vs frames,
-  with a dashed line where the intrinsic rewards start (paper Fig. 6);
-- ``summary.csv`` / ``summary.md`` — :func:`gentlerl.plot.summary_table`.
+- ``impact_histograms.png`` (paper Fig. 3) — max impact per training rollout (N) after the
+  intrinsic rewards switch on (:func:`gentlerl.plot.after_intrinsic_start`), touching rollouts
+  only, one panel per variant, lambda'_2 values overlaid;
+- ``final_impacts.png`` (paper Fig. 5) — max impact of the successful evaluation rollouts of each
+  run's final policy (:func:`gentlerl.plot.successful_final_impacts`; the legend names the
+  episodes' source and says when a variant has none);
+- ``learning_curves.png`` (paper Fig. 4) — evaluation success rate (and return, where it
+  differs) vs env frames, one panel per claim, points with min-max bars (:mod:`gentlerl.curves`);
+- ``reward_components.png`` (paper Fig. 6) — mean of each reward component in the sampled
+  batches vs frames, with a dashed line where the intrinsic rewards start;
+- ``summary.csv`` / ``summary.md`` — :func:`gentlerl.summary.summary_table`, the same selections.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from __future__ import annotations
 import argparse
 import csv
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -26,105 +29,79 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from gentlerl.curves import learning_curves_figure, seeds_label  # noqa: E402
 from gentlerl.plot import (  # noqa: E402
-    EVAL_SUCCESS,
+    FINAL_EVAL_EPISODES,
     Run,
     Series,
+    after_intrinsic_start,
+    final_policy_episodes,
+    final_sources,
     find_runs,
-    format_table,
     group_runs,
-    max_impacts,
     seed_band,
-    summary_table,
+    successful_final_impacts,
 )
+from gentlerl.summary import format_table, summary_markdown, summary_table  # noqa: E402
 
 
-def plot_impact_histograms(runs: Sequence[Run], out: Path, bins: int = 30) -> Path:
-    by_variant: dict[str, dict[str, list[Run]]] = defaultdict(lambda: defaultdict(list))
+def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
+    """Panel title (task and variant) -> label (lambda'_2 for rsp variants) -> runs."""
+    panels: dict[str, dict[str, list[Run]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
-        by_variant[f"{run.config.get('task')}: {run.config.get('variant')}"][run.label].append(run)
-    fig, axes = plt.subplots(1, len(by_variant), figsize=(4 * len(by_variant), 3), squeeze=False)
-    everything = max_impacts(runs)
+        panels[f"{run.config.get('task')}: {run.variant}"][run.label].append(run)
+    return dict(sorted(panels.items()))
+
+
+def _histograms(runs: Sequence[Run], select: Callable, note: Callable, xlabel: str) -> plt.Figure:
+    """One panel per variant, lambda'_2 values overlaid; ``select(runs)`` gives the impacts and
+    ``note(runs, values)`` each legend entry's text. A panel without data says so."""
+    panels = _impact_panels(runs)
+    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.4), squeeze=False)
+    everything = select(list(runs))
     # A few very hard hits would squeeze the bulk into one bin: the last bin holds all >= p98.
     top = max(float(np.percentile(everything, 98)) if len(everything) else 1.0, 1e-3)
-    edges = np.linspace(0, top, bins + 1)
-    for ax, (title, labelled) in zip(axes[0], sorted(by_variant.items()), strict=True):
+    edges = np.linspace(0, top, 31)
+    for ax, (title, labelled) in zip(axes[0], panels.items(), strict=True):
+        drawn = 0
         for label, group in sorted(labelled.items()):
-            ax.hist(np.minimum(max_impacts(group), top), bins=edges, alpha=0.6, label=label)
-        xlabel = f"max impact per rollout (N), last bin >= {top:.1f}"
-        ax.set(title=title, xlabel=xlabel, ylabel="rollouts")
-        ax.legend(fontsize=7)
+            values = select(group)
+            drawn += len(values)
+            text = f"{label}: {note(group, values)}"
+            ax.hist(np.minimum(values, top), bins=edges, alpha=0.6, label=text)
+        if not drawn:
+            ax.text(0.5, 0.6, "no rollouts in this selection", ha="center", transform=ax.transAxes)
+        ax.set(title=title, xlabel=f"{xlabel}, last bin >= {top:.1f}", ylabel="rollouts")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), fontsize=7, frameon=False)
+    return fig
+
+
+def plot_impact_histograms(runs: Sequence[Run], out: Path) -> Path:
+    """Paper Fig. 3: max impact of the touching training rollouts after the intrinsic rewards
+    switch on (:func:`gentlerl.plot.after_intrinsic_start`)."""
+
+    def note(group: list[Run], values: np.ndarray) -> str:
+        every = after_intrinsic_start(group, with_zeros=True)
+        return f"{len(values)} touching of {len(every)} ({seeds_label(len(group))})"
+
+    xlabel = "max impact per training rollout after the switch (N)"
+    fig = _histograms(runs, after_intrinsic_start, note, xlabel)
     return _save(fig, out / "impact_histograms.png")
 
 
-def eval_points(series: Sequence[Series]) -> tuple[np.ndarray, ...]:
-    """Every frame at which any seed evaluated, with the mean, min and max over those seeds.
+def plot_final_impacts(runs: Sequence[Run], out: Path) -> Path:
+    """Paper Fig. 5: max impact of the successful rollouts of each run's final policy
+    (:func:`gentlerl.plot.successful_final_impacts`); the legend names the episodes' source."""
 
-    Evaluations are points, not a curve: nothing is interpolated, so a logged 1.0 at 15k frames
-    and 0.0 at 20k frames stay 1.0 and 0.0 (the mean at a frame uses the seeds evaluated there).
-    """
-    by_frame: dict[float, list[float]] = defaultdict(list)
-    for frames, values in series:
-        for f, v in zip(frames.tolist(), values.tolist(), strict=True):
-            by_frame[f].append(v)
-    frames = sorted(by_frame)
-    stats = np.array([(np.mean(v), np.min(v), np.max(v)) for v in map(by_frame.get, frames)])
-    stats = stats.reshape(len(frames), 3)
-    return np.array(frames, dtype=float), stats[:, 0], stats[:, 1], stats[:, 2]
+    def note(group: list[Run], values: np.ndarray) -> str:
+        episodes = sum(len(final_policy_episodes(r)[0]) for r in group)
+        if not episodes:
+            return f"no final-policy episodes ({FINAL_EVAL_EPISODES} or eval_episodes.csv)"
+        return f"{len(values)} successful of {episodes} ({final_sources(group)})"
 
-
-def seeds_label(n: int) -> str:
-    """``"1 seed"``, ``"3 seeds"``."""
-    return f"{n} seed" if n == 1 else f"{n} seeds"
-
-
-def distinct_metrics(runs: Sequence[Run], metrics: Sequence[tuple[str, str]]) -> list:
-    """``metrics`` without those that repeat an earlier one's values in every run.
-
-    On the touch task the evaluation return is the success rate (reward 1 on success, then the
-    episode ends), so a second panel would repeat the first.
-    """
-    kept: list[tuple[str, str]] = []
-    for name, label in metrics:
-        logged = [r for r in runs if name in r.scalars]
-        repeats = any(
-            all(_same_series(r.scalars[name], r.scalars.get(other)) for r in logged)
-            for other, _ in kept
-        )
-        if logged and not repeats:
-            kept.append((name, label))
-    return kept
-
-
-def _same_series(a: Series, b: Series | None) -> bool:
-    return (
-        b is not None
-        and a[0].shape == b[0].shape
-        and bool(np.array_equal(a[0], b[0]) and np.allclose(a[1], b[1]))
-    )
-
-
-def learning_curves_figure(runs: Sequence[Run]) -> plt.Figure:
-    """Evaluation metrics vs env frames: each seed's evaluations as small points, a line through
-    the mean over seeds (with points) and a band from the min to the max over seeds."""
-    metrics = distinct_metrics(runs, [(EVAL_SUCCESS, "success rate"), ("eval/return", "return")])
-    metrics = metrics or [(EVAL_SUCCESS, "success rate")]
-    fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.5), squeeze=False)
-    for ax, (name, ylabel) in zip(axes[0], metrics, strict=True):
-        for (task, label), group in group_runs(runs).items():
-            series = [r.scalars[name] for r in group if name in r.scalars]
-            frames, mean, low, high = eval_points(series)
-            if not len(frames):
-                continue
-            legend = f"{task}: {label} ({seeds_label(len(series))})"
-            line = ax.plot(frames, mean, marker="o", markersize=4, label=legend)[0]
-            colour = line.get_color()
-            ax.fill_between(frames, low, high, color=colour, alpha=0.2, linewidth=0)
-            for x, y in series:
-                ax.plot(x, y, linestyle="none", marker="x", markersize=4, color=colour, alpha=0.7)
-        ax.set(xlabel="env frames", ylabel=ylabel)
-    axes[0, 0].legend(fontsize=7)
-    return fig
+    xlabel = "max impact per successful final-policy rollout (N)"
+    fig = _histograms(runs, successful_final_impacts, note, xlabel)
+    return _save(fig, out / "final_impacts.png")
 
 
 def plot_learning_curves(runs: Sequence[Run], out: Path) -> Path:
@@ -164,7 +141,8 @@ def _save(fig: plt.Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     tmp = path.with_name(f".{path.name}.tmp")
-    fig.savefig(tmp, dpi=90, format=path.suffix.lstrip("."))
+    # "tight" keeps the legends drawn outside the axes inside the image.
+    fig.savefig(tmp, dpi=90, format=path.suffix.lstrip("."), bbox_inches="tight")
     plt.close(fig)
     tmp.replace(path)
     return path
@@ -202,6 +180,7 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
     """The paper-style figure set and the summary table (CSV and markdown) in ``out``."""
     paths = [
         plot_impact_histograms(runs, out),
+        plot_final_impacts(runs, out),
         plot_learning_curves(runs, out),
         plot_reward_components(runs, out),
     ]
@@ -212,7 +191,7 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
         writer.writeheader()
         writer.writerows(rows)
     tmp.replace(out / "summary.csv")
-    (out / ".summary.md.tmp").write_text(format_table(rows) + "\n")
+    (out / ".summary.md.tmp").write_text(summary_markdown(rows))
     (out / ".summary.md.tmp").replace(out / "summary.md")
     return [*paths, out / "summary.csv", out / "summary.md"]
 

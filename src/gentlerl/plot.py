@@ -1,8 +1,10 @@
 """Runs and their numbers: what ``gentlerl plot`` (:mod:`gentlerl.figures`) draws and tabulates.
 
 Reads the layout written by :mod:`gentlerl.training` (``config.yaml``, TorchRL ``CSVLogger``
-scalars under ``logs/scalars``, ``eval_episodes.csv``); a ``RUN_DIR`` may also be a folder of
-runs (searched recursively). Runs that differ only by seed are grouped (:func:`group_runs`).
+scalars under ``logs/scalars``, ``eval_episodes.csv``, ``final_eval_episodes.csv``); a ``RUN_DIR``
+may also be a folder of runs (searched recursively). Runs that differ only by seed are grouped
+(:func:`group_runs`). The paper's figure selections: :func:`after_intrinsic_start` (Fig. 3) and
+:func:`successful_final_impacts` (Fig. 5); :mod:`gentlerl.summary` tabulates them.
 ``python -m gentlerl.plot RUN_DIR... -o OUT`` is ``gentlerl plot``.
 """
 
@@ -19,6 +21,11 @@ import yaml
 
 Series = tuple[np.ndarray, np.ndarray]
 EVAL_SUCCESS = "eval/success_rate"
+#: Per-episode results of a run's final actor, written next to its checkpoint by
+#: ``python -m gentlerl.evaluate checkpoint.pt --episodes-csv`` (``recipes/reproduce.sh``).
+FINAL_EVAL_EPISODES = "final_eval_episodes.csv"
+#: docs/REPRODUCTION.md's primary lambda'_2 per task: the criteria judge ``r+rf+rsp`` at it.
+PRIMARY_LAM2 = {"touch": 2.0, "fragile": 1.5, "explore": 2.0}
 
 
 @dataclass
@@ -34,10 +41,18 @@ class Run:
         return self.config.get(group, {}).get(name, self.config.get(name, default))
 
     @property
+    def variant(self) -> str:
+        return str(self.config.get("variant"))
+
+    @property
+    def lam2(self) -> float | None:
+        """lambda'_2 of a penalty-surprise (``rsp``) variant; ``None`` for the others."""
+        uses_lam = "rsp" in self.variant
+        return float(self.setting("gentleness", "lam_prime", [None, None])[1]) if uses_lam else None
+
+    @property
     def label(self) -> str:
-        lam2 = self.setting("gentleness", "lam_prime", [None, None])[1]
-        uses_lam = "rsp" in self.config.get("variant", "")
-        return f"{self.config.get('variant')}" + (f" (λ'₂={lam2:g})" if uses_lam else "")
+        return self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
 
     @property
     def group(self) -> tuple:
@@ -96,22 +111,11 @@ def seed_band(series: Sequence[Series], points: int = 50) -> tuple[np.ndarray, .
     return grid, values.mean(0), values.min(0), values.max(0)
 
 
-def _after_warmup(run: Run, name: str) -> np.ndarray:
-    """Values of episode scalar ``name`` logged after the run's random warm-up frames.
-
-    Rollouts of the first ``init_random_frames`` come from a uniformly random policy, not from the
-    variant; at CPU scale they are a large share of a short run, so statistics leave them out.
-    """
+def after_switch(run: Run, name: str) -> np.ndarray:
+    """Values of the episode scalar ``name`` (``episode/max_impact``, ``episode/broken``...)
+    logged after the run's :func:`intrinsic_start`."""
     frames, values = run.scalars.get(name, (np.zeros(0), np.zeros(0)))
-    return values[frames > run.setting("collector", "init_random_frames", 0)]
-
-
-def max_impacts(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
-    """Max impact per training rollout after warm-up, over ``runs``; zero-impact ones removed
-    unless ``with_zeros``."""
-    values = [_after_warmup(run, "episode/max_impact") for run in runs]
-    values = np.concatenate(values) if values else np.zeros(0)
-    return values if with_zeros else values[values > 0]
+    return values[frames > intrinsic_start(run)]
 
 
 def intrinsic_start(run: Run) -> float:
@@ -133,89 +137,54 @@ def intrinsic_start(run: Run) -> float:
 def after_intrinsic_start(runs: Sequence[Run], *, with_zeros: bool = False) -> np.ndarray:
     """Paper Fig. 3's data: max impact (N) of the training rollouts logged after each run's
     :func:`intrinsic_start`, over ``runs``; zero-impact rollouts removed unless ``with_zeros``."""
-    parts = []
-    for run in runs:
-        frames, values = run.scalars.get("episode/max_impact", (np.zeros(0), np.zeros(0)))
-        parts.append(values[frames > intrinsic_start(run)])
+    parts = [after_switch(run, "episode/max_impact") for run in runs]
     values = np.concatenate(parts) if parts else np.zeros(0)
     return values if with_zeros else values[values > 0]
 
 
-def final_eval_episodes(run: Run) -> np.ndarray:
-    """The rows of the run's last evaluation in ``eval_episodes.csv`` (structured array with the
-    columns ``frames, episode, success, broken, max_impact, return``); empty if none."""
-    path = run.path / "eval_episodes.csv"
+def _episode_rows(path: Path) -> np.ndarray:
+    """The rows of an episodes CSV (columns ``frames, episode, success, broken, max_impact,
+    return``) as a structured array; empty if the file is missing or empty."""
     if not path.is_file() or path.stat().st_size == 0:
         return np.zeros(0, dtype=[("frames", float), ("success", float), ("max_impact", float)])
-    rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    return np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+
+
+def final_eval_episodes(run: Run) -> np.ndarray:
+    """The rows of the run's last in-loop evaluation in ``eval_episodes.csv`` (the one at
+    ``total_frames``: the final policy); empty if none."""
+    rows = _episode_rows(run.path / "eval_episodes.csv")
     return rows[rows["frames"] == rows["frames"].max()] if len(rows) else rows
+
+
+def final_policy_episodes(run: Run) -> tuple[np.ndarray, str]:
+    """Evaluation episodes of the run's final policy and where they come from.
+
+    ``"evaluate"``: :data:`FINAL_EVAL_EPISODES`, written by ``python -m gentlerl.evaluate
+    checkpoint.pt --episodes-csv RUN/final_eval_episodes.csv`` (the criteria's 20 episodes),
+    when it evaluated an actor no older than the run's last in-loop evaluation; else
+    ``"in-loop"``: the last in-loop evaluation (:func:`final_eval_episodes`); else ``"none"``.
+    """
+    rows = _episode_rows(run.path / FINAL_EVAL_EPISODES)
+    in_loop = final_eval_episodes(run)
+    if len(rows) and (not len(in_loop) or rows["frames"].min() >= in_loop["frames"].max()):
+        return rows, "evaluate"
+    return in_loop, "in-loop" if len(in_loop) else "none"
 
 
 def successful_final_impacts(runs: Sequence[Run]) -> np.ndarray:
     """Paper Fig. 5's data: max impact (N) of the *successful* evaluation rollouts of each run's
-    final policy (its last evaluation, no exploration noise), over ``runs``."""
-    parts = [rows["max_impact"][rows["success"] > 0] for rows in map(final_eval_episodes, runs)]
+    final policy (:func:`final_policy_episodes`, no exploration noise), over ``runs``."""
+    parts = [
+        rows["max_impact"][rows["success"] > 0] for rows, _ in map(final_policy_episodes, runs)
+    ]
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def _first_success(run: Run, threshold: float = 0.8) -> float:
-    frames, success = run.scalars.get(EVAL_SUCCESS, (np.zeros(0), np.zeros(0)))
-    hits = frames[success >= threshold]
-    return float(hits[0]) if len(hits) else float("nan")
-
-
-def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
-    """Per group (runs that differ only by seed), the numbers the paper's claims are about.
-
-    Training rollouts after the random warm-up: ``contact_share`` (share with any impact),
-    ``mean/median/p90_max_impact`` and ``share_over_5N`` (of the rollouts with impact, N),
-    ``broken_share``. Evaluation: ``final_success`` and ``mean_eval_success`` (mean over seeds of
-    the last / of all evaluations), ``seeds_reaching_0.8`` and ``first_0.8_frames`` (mean over the
-    seeds that reached an evaluation success rate >= 0.8).
-    """
-    rows, nan = [], float("nan")
-    for (task, label), group in group_runs(runs).items():
-        evals = [r.scalars[EVAL_SUCCESS][1] for r in group if EVAL_SUCCESS in r.scalars]
-        all_impacts = max_impacts(group, with_zeros=True)
-        impacts = all_impacts[all_impacts > 0]
-        broken = np.concatenate([_after_warmup(r, "episode/broken") for r in group])
-        first = np.array([_first_success(r) for r in group])
-        reached = first[~np.isnan(first)]
-        rows.append(
-            {
-                "task": task,
-                "variant": label,
-                "seeds": len(group),
-                "final_success": float(np.mean([e[-1] for e in evals])) if evals else nan,
-                "mean_eval_success": float(np.mean([e.mean() for e in evals])) if evals else nan,
-                "seeds_reaching_0.8": len(reached),
-                "first_0.8_frames": float(reached.mean()) if len(reached) else nan,
-                "rollouts": len(all_impacts),
-                "contact_share": _share(len(impacts), len(all_impacts)),
-                "mean_max_impact": float(impacts.mean()) if len(impacts) else 0.0,
-                "median_max_impact": float(np.median(impacts)) if len(impacts) else 0.0,
-                "p90_max_impact": float(np.percentile(impacts, 90)) if len(impacts) else 0.0,
-                "share_over_5N": _share(int((impacts > 5).sum()), len(impacts)),
-                "broken_share": _share(int(broken.sum()), len(broken)),
-            }
-        )
-    return rows
-
-
-def _share(part: int, whole: int) -> float:
-    return part / whole if whole else float("nan")  # no rollouts: undefined, not 0
-
-
-def _cell(value: object) -> str:
-    return f"{value:.2f}" if isinstance(value, float) else str(value)
-
-
-def format_table(rows: Sequence[dict[str, object]]) -> str:
-    """``rows`` of :func:`summary_table` as a markdown table (floats to 2 decimals)."""
-    names = list(rows[0])
-    lines = ["| " + " | ".join(names) + " |", "|" + " --- |" * len(names)]
-    lines += ["| " + " | ".join(_cell(row[n]) for n in names) + " |" for row in rows]
-    return "\n".join(lines)
+def final_sources(runs: Sequence[Run]) -> str:
+    """Where the final-policy episodes of ``runs`` come from: one source, or ``"mixed"``."""
+    sources = {final_policy_episodes(run)[1] for run in runs}
+    return sources.pop() if len(sources) == 1 else "mixed"
 
 
 if __name__ == "__main__":

@@ -1,0 +1,123 @@
+"""The summary table of ``gentlerl plot`` (``summary.csv`` / ``summary.md``): per variant, the
+numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
+
+- ``final_*``: the final policy (:func:`gentlerl.plot.final_policy_episodes`; ``final_source``
+  says which episodes: ``evaluate`` = the 20 episodes of ``python -m gentlerl.evaluate``,
+  ``in-loop`` = the run's last in-loop evaluation, ``none``). ``final_successful_*``: max impact
+  of its *successful* rollouts (paper Fig. 5, :func:`gentlerl.plot.successful_final_impacts`).
+- ``*after_switch``: training rollouts after the intrinsic rewards switch on (paper Fig. 3,
+  :func:`gentlerl.plot.after_intrinsic_start`); impact columns over the touching ones (max impact
+  > 0), in N.
+- ``mean_eval_success``, ``seeds_reaching_0.8``, ``first_0.8_frames``: the in-loop evaluations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from gentlerl.plot import (
+    EVAL_SUCCESS,
+    Run,
+    after_intrinsic_start,
+    after_switch,
+    final_policy_episodes,
+    final_sources,
+    group_runs,
+    intrinsic_start,
+    successful_final_impacts,
+)
+
+NAN = float("nan")
+
+
+def _first_success(run: Run, threshold: float = 0.8) -> float:
+    frames, success = run.scalars.get(EVAL_SUCCESS, (np.zeros(0), np.zeros(0)))
+    hits = frames[success >= threshold]
+    return float(hits[0]) if len(hits) else NAN
+
+
+def _share(part: int, whole: int) -> float:
+    return part / whole if whole else NAN  # no rollouts: undefined, not 0
+
+
+def _median(values: np.ndarray) -> float:
+    return float(np.median(values)) if len(values) else NAN
+
+
+def _p90(values: np.ndarray) -> float:
+    return float(np.percentile(values, 90)) if len(values) else NAN
+
+
+def final_policy_columns(group: Sequence[Run]) -> dict[str, object]:
+    """The ``final_*`` columns of one variant's runs (see the module docstring)."""
+    episodes = [rows for rows, _ in map(final_policy_episodes, group)]
+    rates = [rows["success"].mean() for rows in episodes if len(rows)]
+    successful = successful_final_impacts(group)
+    return {
+        "final_success": float(np.mean(rates)) if rates else NAN,
+        "final_source": final_sources(group),
+        "final_episodes": sum(map(len, episodes)),
+        "final_successful": len(successful),
+        "final_successful_median_impact": _median(successful),
+        "final_successful_p90_impact": _p90(successful),
+    }
+
+
+def after_switch_columns(group: Sequence[Run]) -> dict[str, object]:
+    """The ``*after_switch`` columns of one variant's runs (see the module docstring)."""
+    every = after_intrinsic_start(group, with_zeros=True)
+    touching = every[every > 0]
+    broken = np.concatenate([after_switch(r, "episode/broken") for r in group])
+    in_5_15 = int(((touching >= 5) & (touching <= 15)).sum())
+    return {
+        "switch_frames": float(np.mean([intrinsic_start(r) for r in group])),
+        "rollouts_after_switch": len(every),
+        "touching_share_after_switch": _share(len(touching), len(every)),
+        "median_impact_after_switch": _median(touching),
+        "p90_impact_after_switch": _p90(touching),
+        "share_under_5N_after_switch": _share(int((touching < 5).sum()), len(touching)),
+        "share_5_15N_after_switch": _share(in_5_15, len(touching)),
+        "broken_share_after_switch": _share(int(broken.sum()), len(broken)),
+    }
+
+
+def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
+    """One row per group of runs that differ only by seed (columns: the module docstring);
+    a column without data reads ``nan``."""
+    rows = []
+    for (task, label), group in group_runs(runs).items():
+        evals = [r.scalars[EVAL_SUCCESS][1] for r in group if EVAL_SUCCESS in r.scalars]
+        first = np.array([_first_success(r) for r in group])
+        reached = first[~np.isnan(first)]
+        rows.append(
+            {
+                "task": task,
+                "variant": label,
+                "seeds": len(group),
+                **final_policy_columns(group),
+                "mean_eval_success": float(np.mean([e.mean() for e in evals])) if evals else NAN,
+                "seeds_reaching_0.8": len(reached),
+                "first_0.8_frames": float(reached.mean()) if len(reached) else NAN,
+                **after_switch_columns(group),
+            }
+        )
+    return rows
+
+
+def _cell(value: object) -> str:
+    return f"{value:.2f}" if isinstance(value, float) else str(value)
+
+
+def format_table(rows: Sequence[dict[str, object]]) -> str:
+    """``rows`` of :func:`summary_table` as a markdown table (floats to 2 decimals)."""
+    names = list(rows[0])
+    lines = ["| " + " | ".join(names) + " |", "|" + " --- |" * len(names)]
+    lines += ["| " + " | ".join(_cell(row[n]) for n in names) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def summary_markdown(rows: Sequence[dict[str, object]]) -> str:
+    """``summary.md``: what each column selects (the module docstring), then the table."""
+    return f"{__doc__.strip()}\n\n{format_table(rows)}\n"
