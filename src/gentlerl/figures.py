@@ -53,16 +53,20 @@ def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
     return dict(sorted(panels.items()))
 
 
-def _histograms(runs: Sequence[Run], select: Callable, note: Callable, xlabel: str) -> plt.Figure:
-    """One panel per variant, lambda'_2 values overlaid; ``select(runs)`` gives the impacts and
-    ``note(runs, values)`` each legend entry's text. A panel without data says so."""
+def _histograms(runs: Sequence[Run], select: Callable, note: Callable, title: str) -> plt.Figure:
+    """One panel per variant (4 to a row), lambda'_2 values overlaid; ``select(runs)`` gives the
+    impacts and ``note(runs, values)`` each legend entry's text. A panel without data says so."""
     panels = _impact_panels(runs)
-    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.4), squeeze=False)
+    cols = min(len(panels), 4)
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows + 0.6), squeeze=False)
+    for ax in axes.flat[len(panels) :]:
+        ax.set_visible(False)
     everything = select(list(runs))
     # A few very hard hits would squeeze the bulk into one bin: the last bin holds all >= p98.
     top = max(float(np.percentile(everything, 98)) if len(everything) else 1.0, 1e-3)
     edges = np.linspace(0, top, 31)
-    for ax, (title, labelled) in zip(axes[0], panels.items(), strict=True):
+    for ax, (panel, labelled) in zip(axes.flat, panels.items(), strict=False):
         drawn = 0
         for label, group in sorted(labelled.items()):
             values = select(group)
@@ -70,9 +74,10 @@ def _histograms(runs: Sequence[Run], select: Callable, note: Callable, xlabel: s
             text = f"{label}: {note(group, values)}"
             ax.hist(np.minimum(values, top), bins=edges, alpha=0.6, label=text)
         if not drawn:
-            ax.text(0.5, 0.6, "no rollouts in this selection", ha="center", transform=ax.transAxes)
-        ax.set(title=title, xlabel=f"{xlabel}, last bin >= {top:.1f}", ylabel="rollouts")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), fontsize=7, frameon=False)
+            ax.text(0.5, 0.5, "no rollouts in this selection", ha="center", transform=ax.transAxes)
+        ax.set(title=panel, xlabel=f"max impact (N), last bin >= {top:.1f}", ylabel="rollouts")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), fontsize=7, frameon=False)
+    fig.suptitle(title, fontsize=10)
     return fig
 
 
@@ -84,8 +89,8 @@ def plot_impact_histograms(runs: Sequence[Run], out: Path) -> Path:
         every = after_intrinsic_start(group, with_zeros=True)
         return f"{len(values)} touching of {len(every)} ({seeds_label(len(group))})"
 
-    xlabel = "max impact per training rollout after the switch (N)"
-    fig = _histograms(runs, after_intrinsic_start, note, xlabel)
+    title = "Max impact per touching training rollout after the intrinsic rewards switch on"
+    fig = _histograms(runs, after_intrinsic_start, note, title)
     return _save(fig, out / "impact_histograms.png")
 
 
@@ -96,11 +101,14 @@ def plot_final_impacts(runs: Sequence[Run], out: Path) -> Path:
     def note(group: list[Run], values: np.ndarray) -> str:
         episodes = sum(len(final_policy_episodes(r)[0]) for r in group)
         if not episodes:
-            return f"no final-policy episodes ({FINAL_EVAL_EPISODES} or eval_episodes.csv)"
+            return "no final-policy episodes"
         return f"{len(values)} successful of {episodes} ({final_sources(group)})"
 
-    xlabel = "max impact per successful final-policy rollout (N)"
-    fig = _histograms(runs, successful_final_impacts, note, xlabel)
+    title = (
+        "Max impact per successful rollout of the final policy (episodes: evaluate = "
+        f"{FINAL_EVAL_EPISODES}, in-loop = the run's last evaluation)"
+    )
+    fig = _histograms(runs, successful_final_impacts, note, title)
     return _save(fig, out / "final_impacts.png")
 
 
