@@ -65,13 +65,18 @@ for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
   python -m gentlerl.sweeps "$sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
     --backend "$backend" "${address[@]}" --out "$dir" --set logging.wandb_mode=disabled \
     --set logging.progress=false "${extra[@]}"
-  python -m gentlerl.plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
-  # The criteria's "final success": each run's last actor, 20 deterministic episodes.
+  # The criteria's "final success": each run's last actor, 20 deterministic episodes; their rows
+  # (final_eval_episodes.csv in each run) are Fig. 5's data, so they come before the figures.
+  mkdir -p "$figures/$scale/$method/$sweep"
   evals="$figures/$scale/$method/$sweep/final_eval.jsonl"
   : > "$evals"
-  find "$dir/$sweep" -name checkpoint.pt | sort \
-    | xargs -P "$workers" -I{} python -m gentlerl.evaluate {} --episodes 20 --seed 0 --json \
-    >> "$evals"
+  find "$dir/$sweep" -name checkpoint.pt | sort | xargs -P "$workers" -I{} sh -c \
+    'python -m gentlerl.evaluate "$1" --episodes 20 --seed 0 --json \
+       --episodes-csv "$(dirname "$1")/final_eval_episodes.csv"' _ {} >> "$evals"
+  python -m gentlerl.plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
+  # Shipped policies: the final actor of each touch / fragile run (r+rf+rsp at the primary
+  # lambda'_2 of docs/REPRODUCTION.md) as docs/policies/SCALE/METHOD/<task>/<variant>/seed<k>.pt.
+  python -m gentlerl.export "$dir/$sweep" --out "docs/policies/$scale/$method"
 done
 python -m gentlerl.claims "$dir" --final-evals "$figures/$scale/$method" \
   --markdown "$figures/$scale/$method/claims.md"

@@ -114,18 +114,17 @@ def test_fig3_selection_starts_where_the_intrinsic_rewards_switch_on(tmp_path):
     assert after_intrinsic_start([run], with_zeros=True).tolist() == [0.0, 4.0, 2.0]
 
 
-def test_fig3_selection_without_intrinsic_rewards_uses_the_same_frame(tmp_path):
-    run = _fake_run(
-        tmp_path,
-        "r",
-        0,
-        2.0,
-        (0.0, 0.0, 0.0),
-        [1.0] * 10,
-        init_random_frames=1000,
-        reward_delay=100,
-        utd_ratio=0.25,
-    )
+FLAT = dict(init_random_frames=1000, reward_delay=100, utd_ratio=0.25)  # earlier config.yaml
+NESTED = dict(
+    collector={"init_random_frames": 1000},
+    gentleness={"reward_delay": 100},
+    learner={"utd_ratio": 0.25},
+)
+
+
+@pytest.mark.parametrize("config", [FLAT, NESTED], ids=["flat", "nested"])
+def test_fig3_selection_without_intrinsic_rewards_uses_the_same_frame(tmp_path, config):
+    run = _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0] * 10, **config)
     (run / "logs" / "scalars" / "train" / "intrinsic_on.csv").write_text("1000,0\n2000,0\n")
     (loaded,) = find_runs([tmp_path])
     assert intrinsic_start(loaded) == 1000 + 100 / 0.25

@@ -8,8 +8,9 @@ success rate of each run's last actor over the 20 episodes of ``python -m gentle
 checkpoint.pt --episodes 20 --seed 0 --json`` that ``reproduce.sh`` writes to
 ``DIR/<sweep>/final_eval.jsonl``, averaged over seeds; without that file a run's last in-loop
 evaluation is used and the report says so. Impacts of the successful final-policy rollouts
-(claim 5) come from the last in-loop evaluation (``eval_episodes.csv``,
-:func:`gentlerl.plot.successful_final_impacts`). Rollouts "after the switch" are the training
+(claim 5, :func:`gentlerl.plot.successful_final_impacts`) come from the same 20 episodes
+(``final_eval_episodes.csv`` next to each checkpoint, written by ``reproduce.sh``), else from
+the run's last in-loop evaluation (``eval_episodes.csv``). Rollouts "after the switch" are the training
 rollouts logged after :func:`gentlerl.plot.intrinsic_start`; "touching" means max impact > 0.
 
 A verdict is ``reproduced`` when every condition of the claim holds, ``partly`` when its weaker

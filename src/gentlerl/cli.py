@@ -1,4 +1,4 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims} ...``.
+"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export} ...``.
 
 Each subcommand is a module's ``main(argv, prog)``; ``gentlerl COMMAND --help`` prints that
 command's options with their defaults. Modules are imported only when their command runs, so
@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "video": ("gentlerl.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
     "evaluate": ("gentlerl.evaluate", "success, broken rate and impacts of a saved policy"),
     "claims": ("gentlerl.claims", "the paper's six claims judged on a reproduce.sh grid"),
+    "export": ("gentlerl.export", "runs' final actors as small policy files (no buffer, critics)"),
 }
 
 

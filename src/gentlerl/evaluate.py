@@ -1,19 +1,23 @@
 """Evaluate a saved policy: ``python -m gentlerl.evaluate POLICY --episodes N [--task T] [--seed S]``.
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
-``best_policy.pt``). The actor runs without exploration noise in the env its run trained on (its
+``best_policy.pt``, or a shipped policy of ``python -m gentlerl.export``). The actor runs without exploration noise in the env its run trained on (its
 ``env.kwargs``, so the same hand calibration), or on another task with ``--task`` or another
 calibration with ``--calibration`` (docs/CALIBRATION.md). Prints the
-success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N).
+success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N); ``--episodes-csv`` also writes one
+row per episode (the columns of a run's ``eval_episodes.csv``, ``frames`` = the frames the
+policy trained for), which ``gentlerl plot`` reads as the final policy's episodes (paper Fig. 5).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 from collections.abc import Sequence
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -48,21 +52,23 @@ def evaluate_policy(
     task: str | None = None,
     calibration: str | None = None,
     seed: int = 0,
+    episodes_csv: str | os.PathLike | None = None,
 ) -> dict[str, float]:
     """Load the policy at ``path`` and run ``episodes`` deterministic episodes (see module doc).
 
-    ``task`` / ``calibration``: ``None`` keeps the run's own. Returns ``task`` and the
-    :func:`summarize` numbers.
+    ``task`` / ``calibration``: ``None`` keeps the run's own. ``episodes_csv``: also write the
+    episodes there (:func:`write_episodes`). Returns ``task`` and the :func:`summarize` numbers.
     """
     from gentlerl.training.builders import make_eval_env
-    from gentlerl.training.checkpoint import load_policy
+    from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
     from gentlerl.training.evaluation import evaluate
 
     if not (isinstance(episodes, int) and episodes >= 1):
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if task is not None and task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
-    cfg, actor = load_policy(path)
+    state = load_checkpoint(path)
+    cfg, actor = policy_from_state(state, path)
     env_kwargs = dict(cfg.env.kwargs)
     if calibration is not None:
         env_kwargs["calibration"] = calibration
@@ -73,14 +79,38 @@ def evaluate_policy(
         _, per_episode = evaluate(env, actor, episodes, max_steps=100_000)
     finally:
         env.close()
+    if episodes_csv is not None:
+        write_episodes(episodes_csv, policy_frames(state), per_episode)
     return {"task": task or cfg.task, **summarize(per_episode)}
+
+
+def write_episodes(
+    path: str | os.PathLike, frames: int | None, episodes: Sequence[dict[str, float]]
+) -> Path:
+    """One CSV row per episode with a run's ``eval_episodes.csv`` columns, written atomically;
+    ``frames``: the frames the policy trained for (-1 if unknown)."""
+    from gentlerl.training.logging import EVAL_COLUMNS
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(EVAL_COLUMNS)
+        for i, ep in enumerate(episodes):
+            row = (int(ep["success"]), int(ep["broken"]), ep["max_impact"], ep["return"])
+            writer.writerow([-1 if frames is None else frames, i, *row])
+    tmp.replace(path)
+    return path
 
 
 def main(
     argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.evaluate"
 ) -> dict[str, float]:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
-    parser.add_argument("policy", help="a run's checkpoint.pt or best_policy.pt")
+    parser.add_argument(
+        "policy", help="a run's checkpoint.pt or best_policy.pt, or an exported policy file"
+    )
     parser.add_argument("--episodes", type=int, default=50, help="default: %(default)s")
     parser.add_argument("--task", choices=TASKS, help="default: the task the policy trained on")
     parser.add_argument(
@@ -88,9 +118,15 @@ def main(
     )
     parser.add_argument("--seed", type=int, default=0, help="block placements; default: 0")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--episodes-csv", help="also write one row per episode to this CSV")
     args = parser.parse_args(argv)
     result = evaluate_policy(
-        args.policy, args.episodes, task=args.task, calibration=args.calibration, seed=args.seed
+        args.policy,
+        args.episodes,
+        task=args.task,
+        calibration=args.calibration,
+        seed=args.seed,
+        episodes_csv=args.episodes_csv,
     )
     if args.json:
         print(json.dumps({"policy": str(args.policy), **result}))

@@ -144,20 +144,61 @@ def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any]) -> None:
         rb.storage.set(torch.arange(len(data)), data)  # allocates the full capacity
 
 
-def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:
-    """The run's config and its deterministic actor (no exploration noise).
+#: What :func:`load_policy` needs from a file: the run's config, the actor's sizes and weights.
+POLICY_KEYS = ("config", "obs_dim", "action_dim", "actor")
 
-    ``path`` is a run's ``checkpoint.pt`` (the last actor) or ``best_policy.pt`` (the actor of its
-    best evaluation), also one saved with the flat config of older versions
-    (:func:`~gentlerl.training.config.group_flat_config`).
 
-    Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env.kwargs)``.
-    """
-    state = load_checkpoint(path)
-    missing = [k for k in ("config", "obs_dim", "action_dim", "actor") if k not in state]
+def policy_from_state(
+    state: dict[str, Any], path: str | os.PathLike
+) -> tuple[TrainConfig, TensorDictModule]:
+    """The config and deterministic actor held by a loaded checkpoint or policy ``state``
+    (``path`` names the file in errors)."""
+    missing = [k for k in POLICY_KEYS if k not in state]
     if missing:
         raise CheckpointError(f"{path} is not a gentlerl policy file: it lacks {missing}")
     cfg = make_config(**group_flat_config(state["config"]))
     actor = make_actor(state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
     actor.load_state_dict(state["actor"])
     return cfg, actor.eval()
+
+
+def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:
+    """The run's config and its deterministic actor (no exploration noise).
+
+    ``path`` is a run's ``checkpoint.pt`` (the last actor), ``best_policy.pt`` (the actor of its
+    best evaluation) or a file of :func:`export_policy`, also one saved with the flat config of
+    older versions (:func:`~gentlerl.training.config.group_flat_config`).
+
+    Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env.kwargs)``.
+    """
+    return policy_from_state(load_checkpoint(path), path)
+
+
+def policy_frames(state: dict[str, Any]) -> int | None:
+    """Env frames the actor in ``state`` trained for: a checkpoint's ``counters``, a
+    ``best_policy.pt``'s evaluation, an exported policy's ``frames``; ``None`` if unknown."""
+    if "counters" in state:
+        return int(state["counters"]["frames"])
+    if isinstance(state.get("eval"), dict) and "frames" in state["eval"]:
+        return int(state["eval"]["frames"])
+    return None if state.get("frames") is None else int(state["frames"])
+
+
+def policy_file_state(state: dict[str, Any], path: str | os.PathLike) -> dict[str, Any]:
+    """The part of a loaded checkpoint ``state`` that :func:`load_policy` needs (config, actor
+    sizes and weights; the config in the current grouped layout) and the frames it trained for;
+    ``path`` names the file in errors."""
+    cfg, _ = policy_from_state(state, path)  # refuses a file load_policy could not read
+    policy = {k: state[k] for k in POLICY_KEYS}
+    return {**policy, "config": cfg.to_dict(), "frames": policy_frames(state)}
+
+
+def export_policy(source: str | os.PathLike, out: str | os.PathLike) -> Path:
+    """Write the policy of ``source`` (a run's ``checkpoint.pt`` or ``best_policy.pt``) to
+    ``out``, atomically (:func:`save_checkpoint`): :func:`policy_file_state`, without the replay
+    buffers, critics, surprise models and optimiser state of a checkpoint.
+
+    :func:`load_policy` and ``python -m gentlerl.evaluate`` read the file. Returns ``out``.
+    """
+    save_checkpoint(out, policy_file_state(load_checkpoint(source), source))
+    return Path(out)
