@@ -4,6 +4,7 @@
 #
 #   bash recipes/reproduce.sh [--scale cpu|paper] [--method changes|published] [--workers N]
 #                             [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
+#                             [--policies DIR]  (default docs/policies for cpu/changes)
 #
 # Grids (default hand calibration `paper`, docs/CALIBRATION.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
@@ -27,7 +28,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=()
+scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --scale) scale="$2"; shift 2 ;;
@@ -37,8 +38,9 @@ while [ $# -gt 0 ]; do
     --figures) figures="$2"; shift 2 ;;
     --backend) backend="$2"; shift 2 ;;
     --address) address=(--address "$2"); shift 2 ;;
+    --policies) policies="$2"; shift 2 ;;
     *) echo "unknown argument: $1 (expected --scale, --method, --workers, --out, --figures," \
-         "--backend, --address)" >&2
+         "--backend, --address, --policies)" >&2
        exit 2 ;;
   esac
 done
@@ -59,6 +61,11 @@ case "$method" in
   *) echo "--method must be changes or published, got $method" >&2; exit 2 ;;
 esac
 
+# The repository ships the default row (cpu scale, CPU-scale changes) as docs/policies/.
+if [ -z "$policies" ]; then
+  if [ "$scale/$method" = cpu/changes ]; then policies=docs/policies
+  else policies="docs/policies/$scale/$method"; fi
+fi
 start=$(date +%s)
 dir="$out/$scale/$method"
 for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
@@ -75,8 +82,8 @@ for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
        --episodes-csv "$(dirname "$1")/final_eval_episodes.csv"' _ {} >> "$evals"
   python -m gentlerl.plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
   # Shipped policies: the final actor of each touch / fragile run (r+rf+rsp at the primary
-  # lambda'_2 of docs/REPRODUCTION.md) as docs/policies/SCALE/METHOD/<task>/<variant>/seed<k>.pt.
-  python -m gentlerl.export "$dir/$sweep" --out "docs/policies/$scale/$method"
+  # lambda'_2 of docs/REPRODUCTION.md) as $policies/<task>/<variant>/seed<k>.pt.
+  python -m gentlerl.export "$dir/$sweep" --out "$policies"
 done
 python -m gentlerl.claims "$dir" --final-evals "$figures/$scale/$method" \
   --markdown "$figures/$scale/$method/claims.md"
