@@ -5,6 +5,7 @@
 #   bash recipes/reproduce.sh [--scale cpu|paper] [--method changes|published] [--workers N]
 #                             [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
 #                             [--policies DIR]  (default docs/policies for cpu/changes)
+#                             [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
 #
 # Grids (default hand calibration `paper`, docs/CALIBRATION.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
@@ -28,7 +29,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies=""
+scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies="" only=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --scale) scale="$2"; shift 2 ;;
@@ -39,8 +40,9 @@ while [ $# -gt 0 ]; do
     --backend) backend="$2"; shift 2 ;;
     --address) address=(--address "$2"); shift 2 ;;
     --policies) policies="$2"; shift 2 ;;
+    --only) only+=(--only "$2"); shift 2 ;;
     *) echo "unknown argument: $1 (expected --scale, --method, --workers, --out, --figures," \
-         "--backend, --address, --policies)" >&2
+         "--backend, --address, --policies, --only)" >&2
        exit 2 ;;
   esac
 done
@@ -71,7 +73,7 @@ dir="$out/$scale/$method"
 for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
   python -m gentlerl.sweeps "$sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
     --backend "$backend" "${address[@]}" --out "$dir" --set logging.wandb_mode=disabled \
-    --set logging.progress=false "${extra[@]}"
+    --set logging.progress=false "${extra[@]}" "${only[@]}"
   # The criteria's "final success": each run's last actor, 20 deterministic episodes; their rows
   # (final_eval_episodes.csv in each run) are Fig. 5's data, so they come before the figures.
   mkdir -p "$figures/$scale/$method/$sweep"

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gentlerl.sweeps import expand, load_sweep, main, run_grid
+from gentlerl.sweeps import expand, load_sweep, main, restrict, run_grid
 
 SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
 TINY = [
@@ -26,6 +26,25 @@ def test_paper_sweeps_expand_to_the_expected_grids(tmp_path):
     names = [r.run_dir.name for r in expand(load_sweep(SWEEPS / "fig4_touch.yaml"), tmp_path)]
     assert "task-touch_variant-r+rf+rsp_lam_prime-2-1.5_seed-0" in names
     assert all("," not in n and "=" not in n and "[" not in n for n in names)
+
+
+def test_only_cuts_the_grid_to_the_listed_values(tmp_path, capsys):
+    grid = load_sweep(SWEEPS / "cpu" / "fig4_touch.yaml")
+    cut = restrict(grid, ["variant=r+rf+rsp,rs", "seed=0,2"])
+    assert cut["variant"] == ["r+rf+rsp"] and cut["seed"] == [0, 2]
+    assert [r.run_dir.name for r in expand(cut, tmp_path)] == [
+        "task-touch_variant-r+rf+rsp_lam_prime-2-2_seed-0",
+        "task-touch_variant-r+rf+rsp_lam_prime-2-2_seed-2",
+    ]
+    with pytest.raises(ValueError, match="KEY one of"):
+        restrict(grid, ["sigma=0.1"])
+    with pytest.raises(ValueError, match="keeps none of variant's values"):
+        restrict(grid, ["variant=rs"])
+    sweep = str(SWEEPS / "cpu" / "fig4_touch.yaml")
+    assert main([sweep, "--out", str(tmp_path), "--dry-run", "--only", "seed=1"]) == 0
+    assert "5 runs: {'skipped': 0, 'done': 0, 'failed': 0, 'planned': 5}" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="--only 'seed'"):
+        main([sweep, "--only", "seed"])
 
 
 def test_bad_sweep_files_are_clear_errors(tmp_path):

@@ -92,6 +92,28 @@ def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
     return runs
 
 
+def restrict(grid: dict[str, list[Any]], only: Sequence[str]) -> dict[str, list[Any]]:
+    """The grid with parameter ``KEY`` cut to the values listed in each ``KEY=V1,V2,...`` of
+    ``only`` that it has (values compared as they print on a command line: ``seed=0,1``,
+    ``variant=r+rf+rsp``). A ``KEY`` the sweep does not vary, or a cut that leaves nothing, is an
+    error."""
+    grid = dict(grid)
+    for item in only:
+        key, sep, values = item.partition("=")
+        if not sep or key not in grid:
+            raise ValueError(
+                f"--only {item!r}: expected KEY=V1,V2,... with KEY one of {sorted(grid)}"
+            )
+        wanted = set(values.split(","))
+        kept = [v for v in grid[key] if _format(v) in wanted]
+        if not kept:
+            raise ValueError(
+                f"--only {item!r} keeps none of {key}'s values {[_format(v) for v in grid[key]]}"
+            )
+        grid[key] = kept
+    return grid
+
+
 def run_grid(
     runs: Sequence[GridRun], workers: int = 1, extra: Sequence[str] = (), dry_run: bool = False
 ) -> dict[str, int]:
@@ -139,6 +161,12 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
         default=[],
         help="extra override, e.g. collector.total_frames=30000",
     )
+    parser.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        help="run part of the grid: KEY=V1,V2 keeps those values of a swept KEY (repeatable)",
+    )
     parser.add_argument("--dry-run", action="store_true", help="print the commands only")
     parser.add_argument(
         "--figures", default=None, help="afterwards, write the paper-style figures here"
@@ -160,7 +188,10 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     args = build_parser(prog).parse_args(argv)
     if args.workers < 1:
         raise SystemExit(f"--workers must be >= 1, got {args.workers}")
-    grid = load_sweep(args.sweep)
+    try:
+        grid = restrict(load_sweep(args.sweep), args.only)
+    except ValueError as err:
+        raise SystemExit(str(err)) from None
     root = Path(args.out) / Path(args.sweep).stem
     runs = expand(grid, root)
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
