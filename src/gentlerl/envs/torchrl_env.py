@@ -73,12 +73,16 @@ def hand_tensordict(
     the tensors are views of it); ``flags``: bool ``[*B, 5]`` in :data:`FLAG_KEYS` order;
     ``reward``: float32 ``[*B, 1]`` (None at reset); ``extra``: further entries (``pixels``).
     """
+    # Views are cut in numpy and wrapped by one ``from_numpy`` each: slicing a torch tensor costs
+    # ~3 us per call, a numpy slice ~0.3 us, and this runs for every env step.
     batch = buffer.shape[:-1]
-    buf = torch.from_numpy(buffer)
-    out = {key: buf[..., where].view(*batch, *shape) for key, (where, shape) in OBS_SLICES.items()}
-    out[keys.OBSERVATION] = buf[..., :FLAT_SIZE].clone()  # not aliased with joint_pos & co.
-    values = torch.from_numpy(flags)
-    out.update((key, values[..., i : i + 1]) for i, key in enumerate(FLAG_KEYS))
+    out = {
+        key: torch.from_numpy(buffer[..., where].reshape(*batch, *shape))
+        for key, (where, shape) in OBS_SLICES.items()
+    }
+    # A copy, not aliased with joint_pos & co.
+    out[keys.OBSERVATION] = torch.from_numpy(buffer[..., :FLAT_SIZE].copy())
+    out.update((key, torch.from_numpy(flags[..., i : i + 1])) for i, key in enumerate(FLAG_KEYS))
     if reward is not None:
         out[keys.REWARD] = torch.from_numpy(reward)
     out.update(extra)
