@@ -79,7 +79,8 @@ class HandPhysics(Physics):
         grid = self.data.sensordata[-N_GRID:]
         buf[FLAT_SIZE:GRID_END] = grid
         buf[GRID_END:] = self.data.actuator_force
-        np.abs(grid.reshape(N_TOUCH, -1)).sum(-1, out=buf[2 * N_JOINTS : FLAT_SIZE])
+        # ``ndarray.sum`` is this ``add.reduce`` behind ~1 us of Python dispatch.
+        np.add.reduce(np.abs(grid.reshape(N_TOUCH, -1)), axis=-1, out=buf[2 * N_JOINTS : FLAT_SIZE])
         return buf
 
     def touch_grid(self) -> np.ndarray:
@@ -95,8 +96,10 @@ class HandPhysics(Physics):
         n = self.data.ncon
         g1, g2 = self.data.contact.geom1[:n], self.data.contact.geom2[:n]
         block = self._block_geom
-        others = np.concatenate([g2[g1 == block], g1[g2 == block]])
-        return np.isin(self._tip_geoms, others)
+        # Per contact, the geom touching the block (-1: the block is not in it); a broadcast
+        # comparison with the 5 tips is ~3x faster than ``np.isin`` on a handful of contacts.
+        others = np.where(g1 == block, g2, np.where(g2 == block, g1, -1))
+        return (self._tip_geoms[:, None] == others).any(axis=-1)
 
 
 def _check_non_negative(**values: float) -> None:

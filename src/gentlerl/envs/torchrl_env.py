@@ -86,7 +86,7 @@ def hand_tensordict(
     if reward is not None:
         out[keys.REWARD] = torch.from_numpy(reward)
     out.update(extra)
-    return TensorDict._new_unsafe(out, batch_size=torch.Size(batch))
+    return TensorDict._new_unsafe(out, batch_size=torch.Size(batch), nested=False)
 
 
 class HandEnv(EnvBase):
@@ -152,7 +152,7 @@ class HandEnv(EnvBase):
             dm_env.reset()
             return self._output((False,) * len(FLAG_KEYS), 0.0)
         # Shape and finiteness are checked by the task (ValueError naming the value).
-        dm_env.begin_step(tensordict.get(keys.ACTION).detach().cpu().numpy())
+        dm_env.begin_step(tensordict.get(keys.ACTION).numpy(force=True))  # detached, on the CPU
         dm_env.step_physics()
         reward, discount = dm_env.end_step()
         return self._output(step_flags(dm_env, discount), reward)
