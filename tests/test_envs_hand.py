@@ -168,3 +168,29 @@ def test_bad_actions():
         env.step(np.zeros(19))
     with pytest.raises(ValueError, match="action must be finite"):
         env.step(np.full(20, np.nan))
+
+
+def test_contacts_are_looked_up_only_for_an_outcome_rule(monkeypatch):
+    """Explore has no outcome rule, so its steps skip the fingertip-contact look-up; an Explore
+    subclass with its own ``update_outcome`` gets the contacts of the press (index fingertip)."""
+    from gentlerl.envs.hand import Explore
+
+    calls, real = [], HandPhysics.block_contact
+    monkeypatch.setattr(HandPhysics, "block_contact", lambda self: calls.append(1) or real(self))
+    _press("explore", steps=40)
+    assert calls == []
+
+    class Judged(Explore):
+        def update_outcome(self, touch, previous, on_block):
+            self.success = bool(on_block[0])  # the index fingertip (ff)
+
+    env = make_dm_env("explore", seed=0)
+    env._task = Judged()
+    env.reset()
+    action = np.zeros(20)
+    action[FLEX_INDEX_KNUCKLE] = 1.0
+    steps = 0
+    while not env.task.success and steps < 40:
+        env.step(action)
+        steps += 1
+    assert env.task.success and 0 < len(calls) <= steps
