@@ -73,15 +73,13 @@ class HandPhysics(Physics):
 
     def observation_buffer(self) -> np.ndarray:
         """A fresh float32 ``[OBS_SIZE]`` buffer laid out as :data:`OBS_SLICES`."""
-        buf = np.empty(OBS_SIZE, dtype=np.float32)
-        buf[:N_JOINTS] = self.data.qpos[:N_JOINTS]
-        buf[N_JOINTS : 2 * N_JOINTS] = self.data.qvel[:N_JOINTS]
-        grid = self.data.sensordata[-N_GRID:]
-        buf[FLAT_SIZE:GRID_END] = grid
-        buf[GRID_END:] = self.data.actuator_force
-        # ``ndarray.sum`` is this ``add.reduce`` behind ~1 us of Python dispatch.
-        np.add.reduce(np.abs(grid.reshape(N_TOUCH, -1)), axis=-1, out=buf[2 * N_JOINTS : FLAT_SIZE])
-        return buf
+        data = self.data
+        grid = data.sensordata[-N_GRID:]
+        # |grid| summed per site and channel in float64 (as ``np.abs(...).sum(-1)``), then one
+        # concatenate casts everything to float32: one allocation, ~2x faster than item-wise writes.
+        touch = np.add.reduce(np.abs(grid.reshape(N_TOUCH, -1)), axis=-1)
+        parts = (data.qpos[:N_JOINTS], data.qvel[:N_JOINTS], touch, grid, data.actuator_force)
+        return np.concatenate(parts, dtype=np.float32)
 
     def touch_grid(self) -> np.ndarray:
         """Raw touch grids ``[5, 3, 4, 4]`` (N): normal, then two tangential channels."""
