@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gentlerl.plot import Run, after_intrinsic_start, find_runs, successful_final_impacts
+from gentlerl.plot import Run, find_runs, successful_final_impacts
+from gentlerl.summary import after_switch_columns
 
 SWEEPS = ("fig3_noreward_impacts", "fig4_touch", "fig4_fragile")
 NAN = float("nan")
@@ -43,17 +44,16 @@ class Verdict:
 
 
 def touch_stats(runs: Sequence[Run]) -> dict[str, float]:
-    """Touching share, median and share in / below bands of the max impact after the switch."""
-    all_impacts = after_intrinsic_start(runs, with_zeros=True)
-    touching = all_impacts[all_impacts > 0]
-    if not len(touching):
-        return {**_EMPTY, "rollouts": len(all_impacts), "touch": 0.0 if len(all_impacts) else NAN}
+    """The criteria's names for :func:`gentlerl.summary.after_switch_columns`: rollout count,
+    touching share, and the median / share in [5, 15] N / share below 5 N of the max impact of
+    the touching rollouts after the switch."""
+    cols = after_switch_columns(runs)
     return {
-        "rollouts": len(all_impacts),
-        "touch": len(touching) / len(all_impacts),
-        "median": float(np.median(touching)),
-        "in_5_15": float(((touching >= 5) & (touching <= 15)).mean()),
-        "below_5": float((touching < 5).mean()),
+        "rollouts": cols["rollouts_after_switch"],
+        "touch": cols["touching_share_after_switch"],
+        "median": cols["median_impact_after_switch"],
+        "in_5_15": cols["share_5_15N_after_switch"],
+        "below_5": cols["share_under_5N_after_switch"],
     }
 
 
