@@ -2,15 +2,16 @@
 # Reproduce the paper's three experiments, their figures and the final-policy evaluations that the
 # pre-registered criteria of docs/REPRODUCTION.md judge.
 #
-#   bash recipes/reproduce.sh [--scale cpu|paper] [--method changes|published] [--workers N]
+#   bash recipes/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
 #                             [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
 #                             [--policies DIR]  (default docs/policies for cpu/changes)
 #                             [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
+#                             [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
 #
 # Grids (default hand calibration `paper`, docs/CALIBRATION.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
-#     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 3 seeds (15 runs
-#     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 39 runs of
+#     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 5 seeds (25 runs
+#     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 59 runs of
 #     30k env frames, 5k of them random, intrinsic rewards on after 1k model updates (~9k frames).
 #   --scale paper (recipes/sweeps/): the paper's grid, lambda'_2 in 3 values each: 85 runs of 500k
 #     frames at the paper's hyper-parameters; about 1 h per run on a 2-core CPU, plan for a cluster.
@@ -18,7 +19,10 @@
 # capped at 0, non-episodic intrinsic heads, dynamics surprise x 0.002); --method published: the
 # method as the paper gives it (gentleness.surprise_nll_floor=null network.bounded_support=false
 # learner.episodic_intrinsic=true gentleness.dynamics_surprise_scale=1). Both are needed for the
-# two rows of each claim.
+# two rows of each claim. The ablation methods switch off one change at a time from `changes`:
+# --method no-nll-floor (gentleness.surprise_nll_floor=null), no-support-cap
+# (network.bounded_support=false), episodic (learner.episodic_intrinsic=true), unscaled-rs
+# (gentleness.dynamics_surprise_scale=1).
 #
 # Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/REPRODUCTION.md (measured there).
 #
@@ -30,6 +34,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies="" only=()
+sweeps_run=fig3_noreward_impacts,fig4_touch,fig4_fragile
 while [ $# -gt 0 ]; do
   case "$1" in
     --scale) scale="$2"; shift 2 ;;
@@ -41,8 +46,9 @@ while [ $# -gt 0 ]; do
     --address) address=(--address "$2"); shift 2 ;;
     --policies) policies="$2"; shift 2 ;;
     --only) only+=(--only "$2"); shift 2 ;;
+    --sweeps) sweeps_run="$2"; shift 2 ;;
     *) echo "unknown argument: $1 (expected --scale, --method, --workers, --out, --figures," \
-         "--backend, --address, --policies, --only)" >&2
+         "--backend, --address, --policies, --only, --sweeps)" >&2
        exit 2 ;;
   esac
 done
@@ -60,8 +66,20 @@ case "$method" in
   published) extra+=(--set gentleness.surprise_nll_floor=null --set network.bounded_support=false
                      --set learner.episodic_intrinsic=true
                      --set gentleness.dynamics_surprise_scale=1) ;;
-  *) echo "--method must be changes or published, got $method" >&2; exit 2 ;;
+  no-nll-floor) extra+=(--set gentleness.surprise_nll_floor=null) ;;
+  no-support-cap) extra+=(--set network.bounded_support=false) ;;
+  episodic) extra+=(--set learner.episodic_intrinsic=true) ;;
+  unscaled-rs) extra+=(--set gentleness.dynamics_surprise_scale=1) ;;
+  *) echo "--method must be changes, published, no-nll-floor, no-support-cap, episodic or" \
+       "unscaled-rs, got $method" >&2; exit 2 ;;
 esac
+for sweep in ${sweeps_run//,/ }; do
+  case "$sweep" in
+    fig3_noreward_impacts|fig4_touch|fig4_fragile) ;;
+    *) echo "--sweeps takes fig3_noreward_impacts, fig4_touch, fig4_fragile; got $sweep" >&2
+       exit 2 ;;
+  esac
+done
 
 # The repository ships the default row (cpu scale, CPU-scale changes) as docs/policies/.
 if [ -z "$policies" ]; then
@@ -70,7 +88,7 @@ if [ -z "$policies" ]; then
 fi
 start=$(date +%s)
 dir="$out/$scale/$method"
-for sweep in fig3_noreward_impacts fig4_touch fig4_fragile; do
+for sweep in ${sweeps_run//,/ }; do
   python -m gentlerl.sweeps "$sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
     --backend "$backend" "${address[@]}" --out "$dir" --set logging.wandb_mode=disabled \
     --set logging.progress=false "${extra[@]}" "${only[@]}"
