@@ -3,6 +3,7 @@
 import json
 import math
 
+import pytest
 import yaml
 
 from gentlerl.claims import first_success_frame, judge, load_final_evals, main, touch_stats
@@ -110,3 +111,29 @@ def test_cli_reads_final_evals_and_writes_the_table(tmp_path, capsys):
     assert printed == out.read_text()
     # seed 0 from final_eval.jsonl (0.3), seed 1 from its last evaluation (0.9)
     assert "| 6 | **partly** | fragile final success `r` 0.20, `r+rf+rsp` 0.60" in printed
+
+
+def test_cli_compares_rows_on_the_seeds_they_share(tmp_path, capsys):
+    _paper_like_grid(tmp_path / "full")
+    _paper_like_grid(tmp_path / "ablated")
+    # seed 2 of `r+rf` in the ablated row learns touch: claim 4 drops (mean 0.33) on all seeds only
+    _run(tmp_path / "ablated", "touch", "r+rf", 2, [0, 4, 4], (0, 1, 1))
+    rows = [f"full={tmp_path / 'full'}", f"ablated={tmp_path / 'ablated'}"]
+    main(rows)
+    printed = capsys.readouterr().out
+    assert printed.startswith("| # | full | ablated |\n| --- | --- | --- |\n")
+    assert "| 4 | reproduced | partly |" in printed
+    assert "### ablated" in printed and "23 runs under" in printed
+    main([*rows, "--seeds", "0,1"])
+    printed = capsys.readouterr().out
+    assert "| 4 | reproduced | reproduced |" in printed
+    assert "22 runs (seeds 0,1) under" in printed
+
+
+def test_cli_rejects_bad_seeds_and_empty_selections(tmp_path, capsys):
+    _paper_like_grid(tmp_path)
+    with pytest.raises(SystemExit):
+        main([str(tmp_path), "--seeds", "zero"])
+    assert "--seeds takes integers like 0,1; got 'zero'" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match=r"no runs of seeds \[7\]"):
+        main([str(tmp_path), "--seeds", "7"])

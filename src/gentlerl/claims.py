@@ -1,6 +1,7 @@
 """The paper's six claims judged by the pre-registered criteria of docs/REPRODUCTION.md.
 
-    python -m gentlerl.claims RUNS_ROOT [--final-evals DIR] [--markdown OUT.md]
+    python -m gentlerl.claims [NAME=]RUNS_ROOT ... [--final-evals DIR] [--seeds 0,1]
+                              [--markdown OUT.md]
 
 ``RUNS_ROOT`` holds the three sweeps of ``recipes/reproduce.sh`` (``fig3_noreward_impacts``,
 ``fig4_touch``, ``fig4_fragile``, each a folder of run directories). "Final success" is the
@@ -15,6 +16,11 @@ rollouts logged after :func:`gentlerl.plot.intrinsic_start`; "touching" means ma
 
 A verdict is ``reproduced`` when every condition of the claim holds, ``partly`` when its weaker
 condition holds, otherwise ``not reproduced``; a claim whose runs are missing is ``no data``.
+
+Several roots (the rows of an ablation, e.g. ``changes=runs/cpu/changes
+no-nll-floor=runs/cpu/no-nll-floor``) give one verdict column per root, then each root's table;
+``--seeds`` judges only the runs of those seeds, so that rows with different seed counts can be
+compared on the seeds they share.
 """
 
 from __future__ import annotations
@@ -216,20 +222,65 @@ def format_verdicts(verdicts: Sequence[Verdict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def format_comparison(rows: dict[str, Sequence[Verdict]]) -> str:
+    """One verdict column per row (e.g. the rows of an ablation), claims down the side."""
+    lines = ["| # | " + " | ".join(rows) + " |", "| --- |" + " --- |" * len(rows)]
+    for i, claim in enumerate(next(iter(rows.values()))):
+        lines.append(f"| {claim.claim} | " + " | ".join(v[i].verdict for v in rows.values()) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _row(spec: str) -> tuple[str, Path]:
+    name, sep, path = spec.rpartition("=")
+    return (name if sep else spec), Path(path)
+
+
+def _seeds(text: str) -> set[int]:
+    try:
+        return {int(s) for s in text.split(",")}
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seeds takes integers like 0,1; got {text!r}") from None
+
+
+def _judge_root(
+    root: Path, evals: dict[str, float], seeds: set[int] | None
+) -> tuple[list[Verdict], int]:
+    runs = [r for r in find_runs([root]) if seeds is None or int(r.config["seed"]) in seeds]
+    if not runs:
+        raise FileNotFoundError(f"no runs of seeds {sorted(seeds or ())} under {root}")
+    return judge(group_by_variant(runs), evals), len(runs)
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.claims") -> None:
-    """Print (and with ``--markdown``, write) the verdict table of a reproduction grid."""
+    """Print (and with ``--markdown``, write) the verdict table of one or several grids."""
     parser = argparse.ArgumentParser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("runs", type=Path, help="the --out/<scale>/<method> folder of reproduce.sh")
+    parser.add_argument(
+        "runs",
+        nargs="+",
+        type=_row,
+        help="[NAME=]the --out/<scale>/<method> folder of reproduce.sh",
+    )
     parser.add_argument("--final-evals", type=Path, help="folder with <sweep>/final_eval.jsonl")
+    parser.add_argument("--seeds", type=_seeds, help="judge only these seeds, e.g. 0,1")
     parser.add_argument("--markdown", type=Path, help="also write the table to this file")
     args = parser.parse_args(argv)
     evals = load_final_evals(args.final_evals) if args.final_evals else {}
-    runs = find_runs([args.runs])
-    table = format_verdicts(judge(group_by_variant(runs), evals))
     source = "final_eval.jsonl (20 episodes)" if evals else "each run's last in-loop evaluation"
-    table += f"\n{len(runs)} runs under {args.runs}; final success from {source}.\n"
+    seeds = f" (seeds {','.join(map(str, sorted(args.seeds)))})" if args.seeds else ""
+    rows, tables = {}, []
+    for name, root in args.runs:
+        rows[name], n = _judge_root(root, evals, args.seeds)
+        tables.append(
+            f"{format_verdicts(rows[name])}\n{n} runs{seeds} under {root}; final success from "
+            f"{source}.\n"
+        )
+    table = tables[0]
+    if len(rows) > 1:
+        table = format_comparison(rows) + "".join(
+            f"\n### {name}\n\n{t}" for name, t in zip(rows, tables, strict=True)
+        )
     print(table, end="")
     if args.markdown:
         tmp = args.markdown.with_suffix(".tmp")
