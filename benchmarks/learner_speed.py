@@ -1,30 +1,78 @@
-"""Learner throughput: full D4PG updates/s at paper scale, and fused vs looped critics.
+"""Learner throughput: full D4PG updates/s at a run's scale, and fused vs looped critics.
 
-    python benchmarks/learner_speed.py [--threads 2] [--device cpu] [--markdown]
+    python benchmarks/learner_speed.py [--scale paper|recipe] [--threads 2] [--device cpu]
+        [--min-time 3] [--markdown]
 
-"Full update" = one MultiHeadD4PGLoss update (batch 256, 4 critic heads 400-300, 101 atoms, actor
-300-200) + one penalty-ensemble update (5 members x 3 x 128, bootstrap batch 5 x 256), both with
-Adam. "Fused vs loop" times forward+backward of the K=4 critics as one FusedCritic against a python
-loop over 4 separate nn.Sequential critics with the same architecture. The CPU matmul peak is
-estimated with a large float32 matmul on the same threads.
+Sizes come from the training config (the presets of ``gentlerl.training.make_config``): ``--scale paper`` is the
+``paper`` preset (batch 256, critics 400-300, actor 300-200, 101 atoms, penalty ensemble 5 x 3 x
+128 on a bootstrap batch of 5 x 256) with four critic heads (every reward component the paper
+learns from); ``--scale recipe`` is the default recipe (``cpu`` preset, default variant: batch
+128, critics and actor 256-256, one head per reward component of the variant, penalty ensemble
+5 x 3 x 128 on 5 x 64). Observation 63 and action 20 are the hand env's sizes.
+
+"Full update" = one ``Learner.update`` (the multi-head D4PG loss, one grouped Adam step, the
+target copy when due) + one penalty-ensemble update (Adam, its target copy when due): the compute
+of one step of the training loop, without replay sampling and priority writes. "+ host reads"
+also reads every loss output with ``.item()`` as the training loop logs them (on a GPU: one wait
+for the device per update). "Fused vs loop" times forward+backward of the critics as one ``FusedCritic`` against a
+python loop over separate ``nn.Sequential`` critics of the same architecture. The matmul peak is
+a 2048^2 float32 matmul on the same threads / device.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import time
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict
 from torch import nn
+from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
+from gentlerl.agent.learner import Learner
 from gentlerl.models import FusedCritic, PenaltyModel, make_actor, make_critic
+from gentlerl.models.actor import paper_trunk
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
+from gentlerl.training.presets import SCALES
+from gentlerl.training.schema import TrainConfig
 
-OBS, ACT, K, B, ATOMS = 63, 20, 4, 256, 101
-REWARD_KEYS = ["reward", "penalty", "penalty_surprise", "dynamics_surprise"]
+OBS, ACT = 63, 20
+#: The paper scale's heads: all four reward components of the paper's variants.
+PAPER_HEADS = ("reward", "penalty", "penalty_surprise", "dynamics_surprise")
+
+
+@dataclass(frozen=True)
+class Scale:
+    """What one update processes: the config's sizes and critic heads."""
+
+    cfg: TrainConfig
+    heads: tuple[str, ...]
+
+    @property
+    def batch(self) -> int:
+        return self.cfg.replay.batch_size
+
+
+def _preset(name: str) -> TrainConfig:
+    """``make_config(name)`` without its validation, which imports the envs (dm_control)."""
+    cfg = TrainConfig(scale=name)
+    for group, values in SCALES[name].items():
+        setattr(cfg, group, dataclasses.replace(getattr(cfg, group), **values))
+    return cfg
+
+
+def make_scale(name: str) -> Scale:
+    """``paper``: the paper preset with :data:`PAPER_HEADS`; ``recipe``: the default recipe."""
+    if name == "paper":
+        return Scale(_preset("paper"), PAPER_HEADS)
+    if name == "recipe":
+        cfg = _preset("cpu")
+        return Scale(cfg, tuple(cfg.reward_keys))
+    raise ValueError(f"unknown scale {name!r}; expected 'paper' or 'recipe'")
 
 
 def _sync(device: str) -> None:
@@ -32,8 +80,8 @@ def _sync(device: str) -> None:
         torch.cuda.synchronize()
 
 
-def _time(fn, device: str, warmup: int = 5, min_time: float = 3.0) -> float:
-    """Seconds per call (median-free: total time over as many calls as fit in ``min_time``)."""
+def _time(fn, device: str, min_time: float, warmup: int = 10) -> float:
+    """Seconds per call: total time over as many calls as fit in ``min_time``, after warm-up."""
     for _ in range(warmup):
         fn()
     _sync(device)
@@ -45,116 +93,141 @@ def _time(fn, device: str, warmup: int = 5, min_time: float = 3.0) -> float:
     return (time.perf_counter() - start) / n
 
 
-def _batch(device: str) -> TensorDict:
+def _batch(scale: Scale, device: str) -> TensorDict:
+    b = scale.batch
     td = TensorDict(
         {
-            keys.OBSERVATION: torch.randn(B, OBS),
-            keys.ACTION: torch.rand(B, ACT) * 2 - 1,
-            "steps_to_next_obs": torch.full((B,), 5),
+            keys.OBSERVATION: torch.randn(b, OBS),
+            keys.ACTION: torch.rand(b, ACT) * 2 - 1,
+            "steps_to_next_obs": torch.full((b,), scale.cfg.replay.n_steps),
             "next": {
-                keys.OBSERVATION: torch.randn(B, OBS),
-                keys.NSTEP_TERMINATED: torch.zeros(B, 1, dtype=torch.bool),
-                **{k: torch.randn(B, 1) for k in REWARD_KEYS},
+                keys.OBSERVATION: torch.randn(b, OBS),
+                keys.NSTEP_TERMINATED: torch.zeros(b, 1, dtype=torch.bool),
+                **{k: torch.randn(b, 1) for k in scale.heads},
             },
         },
-        [B],
+        [b],
     )
     return td.to(device)
 
 
-def full_update(device: str) -> float:
+def _learner(scale: Scale, device: str) -> Learner:
+    net, lrn = scale.cfg.network, scale.cfg.learner
     loss = MultiHeadD4PGLoss(
-        make_actor(OBS, ACT, (300, 200)),
-        make_critic(OBS, ACT, K, (400, 300), ATOMS),
-        reward_keys=REWARD_KEYS,
-    ).to(device)
+        make_actor(OBS, ACT, net.actor_hidden),
+        make_critic(OBS, ACT, len(scale.heads), net.critic_hidden, net.num_atoms),
+        reward_keys=list(scale.heads),
+    )
+    loss.make_value_estimator(gamma=lrn.gamma)
     loss.set_keys(terminated=keys.NSTEP_TERMINATED)
-    opt_a = torch.optim.Adam(loss.actor_network_params.values(True, True), 1e-4)
-    opt_c = torch.optim.Adam(loss.value_network_params.values(True, True), 1e-4)
-    model = EnsembleModelLoss(PenaltyModel(OBS, ACT, 5, (128, 128, 128)), name="penalty").to(device)
-    opt_m = torch.optim.Adam(model.parameters(), 1e-3)
-    batch = _batch(device)
-    model_batch = batch.expand(5, B).clone()
-    model_batch["next", keys.PENALTY] = torch.randn(5, B, 1, device=device)
+    # Moved before Learner builds its optimiser, so Adam holds the device's parameters.
+    return Learner(
+        loss.to(device),
+        lr_actor=lrn.lr_actor,
+        lr_critic=lrn.lr_critic,
+        target_update_period=lrn.target_update_period,
+    )
 
-    def step() -> None:
-        out = model(model_batch)
+
+def full_update(scale: Scale, device: str, min_time: float) -> tuple[float, float]:
+    """(updates/s, updates/s with the loop's ``.item()`` reads of every loss output)."""
+    g = scale.cfg.gentleness
+    learner = _learner(scale, device)
+    model = PenaltyModel(OBS, ACT, g.ensemble_size, (g.model_hidden,) * 3)
+    model_loss = EnsembleModelLoss(model, name="penalty").to(device)
+    opt_m = torch.optim.Adam(model_loss.parameters(), g.lr_model)
+    model_target = HardUpdate(model_loss, value_network_update_interval=g.penalty_target_period - 1)
+    batch = _batch(scale, device)
+    model_batch = _batch(scale, device)[: g.model_batch_size]
+    model_batch = model_batch.expand(g.ensemble_size, *model_batch.shape).clone()
+    model_batch["next", keys.PENALTY] = torch.randn(*model_batch.shape, 1, device=device)
+
+    def step() -> tuple[torch.Tensor, TensorDict]:
+        model_out = model_loss(model_batch)["loss_penalty"]
         opt_m.zero_grad()
-        out["loss_penalty"].backward()
+        model_out.backward()
         opt_m.step()
-        out = loss(batch)
-        opt_a.zero_grad()
-        opt_c.zero_grad()
-        (out["loss_value"] + out["loss_actor"]).backward()
-        opt_c.step()
-        opt_a.step()
+        model_target.step()
+        return model_out, learner.update(batch)
 
-    return 1.0 / _time(step, device)
+    def step_and_read() -> None:
+        model_out, out = step()
+        [v.item() for v in (model_out, *out.values())]
+
+    return 1.0 / _time(step, device, min_time), 1.0 / _time(step_and_read, device, min_time)
 
 
-def _loop_critics(device: str) -> nn.ModuleList:
+def _loop_critics(scale: Scale, device: str) -> nn.ModuleList:
+    net = scale.cfg.network
+
     def one() -> nn.Sequential:
-        return nn.Sequential(
-            nn.Linear(OBS + ACT, 400),
-            nn.LayerNorm(400),
-            nn.Tanh(),
-            nn.Linear(400, 300),
-            nn.ELU(),
-            nn.Linear(300, ATOMS),
-        )
+        trunk = paper_trunk(OBS + ACT, net.critic_hidden)
+        return nn.Sequential(*trunk, nn.Linear(net.critic_hidden[-1], net.num_atoms))
 
-    return nn.ModuleList(one() for _ in range(K)).to(device)
+    return nn.ModuleList(one() for _ in scale.heads).to(device)
 
 
-def critics(device: str) -> tuple[float, float, float]:
-    """(fused calls/s, loop calls/s, fused GFLOP/s) for forward+backward on batch 256."""
-    fused = FusedCritic(OBS, ACT, K, (400, 300), ATOMS).to(device)
-    loop = _loop_critics(device)
-    obs, act = torch.randn(B, OBS, device=device), torch.randn(B, ACT, device=device)
+def critics(scale: Scale, device: str, min_time: float) -> tuple[float, float, float]:
+    """(fused calls/s, loop calls/s, fused GFLOP/s) for forward+backward on one batch."""
+    net, k, b = scale.cfg.network, len(scale.heads), scale.batch
+    fused = FusedCritic(OBS, ACT, k, net.critic_hidden, net.num_atoms).to(device)
+    loop = _loop_critics(scale, device)
+    obs, act = torch.randn(b, OBS, device=device), torch.randn(b, ACT, device=device)
     x = torch.cat([obs, act], -1)
 
     def run_fused() -> None:
-        fused(obs, act).sum().backward()
+        fused(obs, act)[0].sum().backward()
 
     def run_loop() -> None:
         torch.stack([c(x) for c in loop], -2).sum().backward()
 
-    t_fused, t_loop = _time(run_fused, device), _time(run_loop, device)
-    flops = 3 * 2 * B * K * ((OBS + ACT) * 400 + 400 * 300 + 300 * ATOMS)  # fwd + 2x bwd
+    t_fused, t_loop = _time(run_fused, device, min_time), _time(run_loop, device, min_time)
+    widths = [OBS + ACT, *net.critic_hidden, net.num_atoms]
+    macs = sum(i * o for i, o in zip(widths, widths[1:], strict=False))
+    flops = 3 * 2 * b * k * macs  # forward + 2x backward
     return 1 / t_fused, 1 / t_loop, flops / t_fused / 1e9
 
 
-def matmul_peak(device: str) -> float:
+def matmul_peak(device: str, min_time: float) -> float:
     a = torch.randn(2048, 2048, device=device)
-    t = _time(lambda: a @ a, device, min_time=2.0)
-    return 2 * 2048**3 / t / 1e9
+    return 2 * 2048**3 / _time(lambda: a @ a, device, min_time) / 1e9
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scale", default="paper", choices=["paper", "recipe"])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--device", default="cpu")
+    parser.add_argument("--min-time", type=float, default=3.0, help="seconds timed per row")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
-    ups = full_update(args.device)
-    fused, looped, gflops = critics(args.device)
-    peak = matmul_peak(args.device)
+    scale, t = make_scale(args.scale), args.min_time
+    ups, ups_read = full_update(scale, args.device, t)
+    fused, looped, gflops = critics(scale, args.device, t)
+    peak = matmul_peak(args.device, t)
     name = (
         torch.cuda.get_device_name()
         if args.device.startswith("cuda")
         else platform.processor() or platform.machine()
     )
+    net, k = scale.cfg.network, len(scale.heads)
     rows = [
-        ("full update (D4PG 4 heads + penalty ensemble), updates/s", f"{ups:.1f}"),
+        ("full update (D4PG + penalty ensemble), updates/s", f"{ups:.1f}"),
+        ("full update, ms", f"{1e3 / ups:.2f}"),
+        ("full update + host reads (.item() of each loss), updates/s", f"{ups_read:.1f}"),
         ("fused critics fwd+bwd, calls/s", f"{fused:.1f}"),
-        ("loop of 4 critics fwd+bwd, calls/s", f"{looped:.1f}"),
+        (f"loop of {k} critics fwd+bwd, calls/s", f"{looped:.1f}"),
         ("fused / loop speed-up", f"{fused / looped:.2f}x"),
         ("fused critics GFLOP/s (share of matmul peak)", f"{gflops:.1f} ({gflops / peak:.0%})"),
         ("matmul peak (2048^2 fp32), GFLOP/s", f"{peak:.1f}"),
     ]
-    header = f"device: {args.device} ({name}), torch threads: {args.threads}, batch {B}"
+    header = (
+        f"scale {args.scale}: batch {scale.batch}, {k} heads {'-'.join(map(str, net.critic_hidden))}"
+        f" x {net.num_atoms} atoms, actor {'-'.join(map(str, net.actor_hidden))}; device: "
+        f"{args.device} ({name}), torch {torch.__version__}, threads: {args.threads}"
+    )
     if args.markdown:
         print(header + "\n\n| what | value |\n| --- | ---: |")
         for what, value in rows:
