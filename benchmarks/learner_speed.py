@@ -22,7 +22,6 @@ a 2048^2 float32 matmul on the same threads / device.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import platform
 import time
 from dataclasses import dataclass
@@ -37,7 +36,7 @@ from gentlerl.agent.learner import Learner
 from gentlerl.models import FusedCritic, PenaltyModel, make_actor, make_critic
 from gentlerl.models.actor import paper_trunk
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
-from gentlerl.training.presets import SCALES
+from gentlerl.training.config import preset_config
 from gentlerl.training.schema import TrainConfig
 
 OBS, ACT = 63, 20
@@ -57,20 +56,12 @@ class Scale:
         return self.cfg.replay.batch_size
 
 
-def _preset(name: str) -> TrainConfig:
-    """``make_config(name)`` without its validation, which imports the envs (dm_control)."""
-    cfg = TrainConfig(scale=name)
-    for group, values in SCALES[name].items():
-        setattr(cfg, group, dataclasses.replace(getattr(cfg, group), **values))
-    return cfg
-
-
 def make_scale(name: str) -> Scale:
     """``paper``: the paper preset with :data:`PAPER_HEADS`; ``recipe``: the default recipe."""
     if name == "paper":
-        return Scale(_preset("paper"), PAPER_HEADS)
+        return Scale(preset_config("paper"), PAPER_HEADS)
     if name == "recipe":
-        cfg = _preset("cpu")
+        cfg = preset_config("cpu")
         return Scale(cfg, tuple(cfg.reward_keys))
     raise ValueError(f"unknown scale {name!r}; expected 'paper' or 'recipe'")
 

@@ -72,6 +72,14 @@ def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
     Overrides are top-level fields or groups given as (partial) mappings:
     ``make_config("paper", seed=1, replay={"batch_size": 64})``.
     """
+    cfg = preset_config(scale, **overrides)
+    validate(cfg)
+    return cfg
+
+
+def preset_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
+    """:func:`make_config` without :func:`validate` (which looks up the env's task names, so
+    imports the environments): for tools that only read sizes, like the learner benchmark."""
     if scale not in SCALES:
         raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
     values = TrainConfig().to_dict()
@@ -84,9 +92,7 @@ def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
             if isinstance(f.default, tuple) and group[f.name] is not None:
                 group[f.name] = tuple(group[f.name])
         groups[name] = cls(**group)
-    cfg = TrainConfig(**values, **groups)
-    validate(cfg)
-    return cfg
+    return TrainConfig(**values, **groups)
 
 
 #: Flat field names of configs saved before the grouping whose grouped name is not the same name.
