@@ -173,6 +173,36 @@ def test_penalty_surprise_zero_without_impact_and_formula_with_it():
     assert isinstance(stack.transform[1], PenaltySurprise)
 
 
+def test_penalty_surprise_scale_shrinks_the_nll_not_the_refund():
+    """surprise_scale s: r^sp = a'(s nll - r^f), so r^f + r^sp = a' s nll + (1 - a') r^f (eq. 7).
+
+    With s = 0 the sum is (1 - a') r^f: the refund of the acceptable part of the penalty stays,
+    only the curiosity is gone (scaling the whole reward would give back the full penalty).
+    """
+    out = {}
+    for scale in (1.0, 0.25, 0.0):
+        stack = make_reward_transforms(
+            "r+rf+rsp",
+            reward_delay=0,
+            hidden=16,
+            ensemble_size=3,
+            lam_prime=(2.0, 3.0),
+            surprise_scale=scale,
+        )
+        stack.step(0)
+        batch = _pressing_rollout(ToyHandEnv())
+        out[scale] = stack.transform(batch)
+    penalty = out[1.0]["next", keys.PENALTY]
+    hit = penalty < 0
+    a = torch.sigmoid(2.0 * (3.0 + penalty))
+    nll = out[1.0]["next", keys.PENALTY_SURPRISE] / a + penalty  # invert eq. 8 at s = 1
+    for scale in (0.25, 0.0):
+        rsp = out[scale]["next", keys.PENALTY_SURPRISE]
+        torch.testing.assert_close(rsp[hit], (a * (scale * nll + -penalty))[hit])
+    total = penalty + out[0.0]["next", keys.PENALTY_SURPRISE]
+    torch.testing.assert_close(total[hit], ((1 - a) * penalty)[hit])
+
+
 def test_step_copies_targets_at_their_periods():
     stack = make_reward_transforms("r+rf+rsp", reward_delay=5, penalty_target_period=3, hidden=16)
     loss = stack.losses["penalty"]

@@ -125,7 +125,7 @@ class GentlenessConfig:
     model_batch_size: int = _f(64, "transitions per ensemble member and model update")
     model_buffer_size: int = _f(100_000, "1-step transitions kept for the models")
     lr_model: float = _f(1e-3, "Adam step size of the models")
-    surprise_scale: float = _f(1.0, "multiplies the surprise rewards")
+    surprise_scale: float = _f(1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)")
     # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
     # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
     # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).

@@ -71,7 +71,11 @@ class PenaltySurprise(ModelRewardTransform):
         model: the penalty ensemble.
         params: its parameters to read: the target copy of its loss (``target_model_params``).
         lam_prime: :math:`\lambda' = [\lambda'_1, \lambda'_2]` (paper: lambda'_1 = 2, lambda'_2 in 1..4).
-        scale: multiplies the reward (1 = the paper's equation).
+        scale: multiplies the NLL only, :math:`a'(s \cdot \mathrm{nll} - r^f)`, so that
+            :math:`r^f + r^{s_p} = a' s\,\mathrm{nll} + (1 - a') r^f` keeps eq. 7's refund of the
+            penalty and shrinks (``s < 1``) or grows only the curiosity part (1 = the paper's
+            equation). Scaling the whole reward would also shrink the refund and bring the
+            penalty back rather than curiosity down.
         nll_floor: if set, the NLL is clamped from below at this value before eq. 8. The paper's
             equation (``None``) makes a *well*-predicted small penalty cost ``a' * nll < 0``, so
             once the penalty model is accurate, gentle contact is punished; a floor of 0 keeps the
@@ -91,8 +95,11 @@ class PenaltySurprise(ModelRewardTransform):
     ) -> None:
         if lam_prime[0] < 0:
             raise ValueError(f"lam_prime[0] (sigmoid steepness) must be >= 0, got {lam_prime}")
+        if not scale >= 0:
+            raise ValueError(f"scale must be >= 0, got {scale}")
         in_keys = [model.obs_key, model.action_key, penalty_key]
-        super().__init__(model, params, out_key, scale, in_keys)
+        super().__init__(model, params, out_key, 1.0, in_keys)
+        self.nll_scale = float(scale)
         self.penalty_key = penalty_key
         self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
         self.nll_floor = nll_floor
@@ -110,4 +117,5 @@ class PenaltySurprise(ModelRewardTransform):
         nll = gaussian_nll(penalty, mu, sigma2)
         if self.nll_floor is not None:
             nll = nll.clamp_min(self.nll_floor)
-        return {self.out_keys[0]: self._gate(penalty_surprise(penalty, nll, *self.lam_prime))}
+        surprise = penalty_surprise(penalty, self.nll_scale * nll, *self.lam_prime)
+        return {self.out_keys[0]: self._gate(surprise)}
