@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import subprocess
 import sys
 from collections.abc import Sequence
@@ -23,9 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from gentlerl.cli import command_parser
+from gentlerl.sweep_files import check_set, load_sweep
 from gentlerl.training.loop import DONE_MARKER
 
 
@@ -47,31 +47,13 @@ class GridRun:
 def _format(value: Any) -> str:
     if isinstance(value, list | tuple):
         return "[" + ",".join(_format(v) for v in value) + "]"
-    return str(value)
+    return "null" if value is None else str(value)
 
 
 def _slug(value: Any) -> str:
     if isinstance(value, list | tuple):
         return "-".join(_slug(v) for v in value)
     return str(value)
-
-
-def load_sweep(path: str | Path) -> dict[str, list[Any]]:
-    """``parameters`` of a wandb grid sweep file as name -> list of values."""
-    spec = yaml.safe_load(Path(path).read_text())
-    if spec.get("method", "grid") != "grid":
-        raise ValueError(f"{path}: only grid sweeps run locally, got method={spec.get('method')!r}")
-    grid = {}
-    for name, param in (spec.get("parameters") or {}).items():
-        if "values" in param:
-            grid[name] = list(param["values"])
-        elif "value" in param:
-            grid[name] = [param["value"]]
-        else:
-            raise ValueError(f"{path}: parameter {name!r} needs `values:` or `value:`, got {param}")
-    if not grid:
-        raise ValueError(f"{path}: no parameters")
-    return grid
 
 
 def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
@@ -88,8 +70,16 @@ def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
         seen.add(repr(key))
         # No commas, brackets or '=' in the directory name: hydra would parse them in run_dir=...
         name = "_".join(f"{k.rsplit('.', 1)[-1]}-{_slug(v)}" for k, v in key)
-        runs.append(GridRun(key, out / name))
+        runs.append(GridRun(key, _inside(out, name)))
     return runs
+
+
+def _inside(out: Path, name: str) -> Path:
+    """``out / name``, refused unless it is a folder directly under ``out``."""
+    run_dir = out / name
+    if "/" in name or os.sep in name or run_dir.resolve().parent != out.resolve():
+        raise ValueError(f"grid point folder {name!r} would not be directly under {out}")
+    return run_dir
 
 
 def restrict(grid: dict[str, list[Any]], only: Sequence[str]) -> dict[str, list[Any]]:
@@ -188,12 +178,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     args = build_parser(prog).parse_args(argv)
     if args.workers < 1:
         raise SystemExit(f"--workers must be >= 1, got {args.workers}")
-    try:
-        grid = restrict(load_sweep(args.sweep), args.only)
-    except ValueError as err:
-        raise SystemExit(str(err)) from None
     root = Path(args.out) / Path(args.sweep).stem
-    runs = expand(grid, root)
+    try:
+        check_set(args.set)
+        runs = expand(restrict(load_sweep(args.sweep), args.only), root)
+    except (ValueError, OSError) as err:
+        raise SystemExit(f"{prog}: {err}") from None
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
     if args.backend == "ray" and not args.dry_run:
         from gentlerl.distributed.cluster import ClusterError

@@ -1,0 +1,110 @@
+"""Reading a sweep file safely: every key a config field, every value a plain number or name.
+
+Sweep keys become hydra overrides and values become folder names, so a key like
+``+hydra.callbacks.x._target_`` would run code and a value like ``r/../../x`` would write outside
+``--out``: both are refused before anything runs, in one line naming the key or value.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+__all__ = ["check_key", "check_set", "check_value", "load_sweep", "sweepable_fields"]
+
+#: What a string in a sweep may hold: a name or a number, never a path separator, a hydra
+#: interpolation (``${...}``), a list or another override (``,`` ``=`` ``[`` spaces, quotes).
+_SAFE_STRING = re.compile(r"[A-Za-z0-9_.+-]+")
+#: Fields the runner sets itself for each grid point.
+_RUNNER_FIELDS = ("run_dir", "resume")
+
+
+def sweepable_fields() -> dict[str, str]:
+    """Config fields a sweep may vary (``group.field`` -> its type), not ``run_dir`` / ``resume``
+    (the runner sets them) nor the mapping ``env.kwargs``."""
+    from gentlerl.training.config import iter_fields
+
+    return {
+        name: str(f.type)
+        for name, f in iter_fields()
+        if name not in _RUNNER_FIELDS and not str(f.type).startswith("dict")
+    }
+
+
+def check_key(key: str, where: str) -> None:
+    """Refuse a sweep key that is not a config field (``hydra.*``, ``_target_``, ``+`` ...)."""
+    if key in _RUNNER_FIELDS:
+        raise ValueError(f"{where}: {key!r} cannot be swept (the sweep runner sets it per point)")
+    if key not in sweepable_fields():
+        raise ValueError(
+            f"{where}: unknown key {key!r}: sweep keys are config fields (group.field, see "
+            "gentlerl train --help); hydra.*, _target_ and +/++ additions are refused"
+        )
+
+
+def check_value(key: str, value: Any, where: str) -> None:
+    """Refuse a value that is not a number, a boolean, null, a plain name or a flat list of them."""
+    if isinstance(value, list | tuple):
+        for element in value:
+            if isinstance(element, list | tuple):
+                raise ValueError(f"{where}: {key}={value!r}: nested lists are not sweep values")
+            check_value(key, element, where)
+    elif isinstance(value, str):
+        if not _SAFE_STRING.fullmatch(value) or value in (".", ".."):
+            raise ValueError(
+                f"{where}: {key}={value!r}: a string value may hold only letters, digits and "
+                "'_.+-' (no '/', '$', ',', '=', spaces, quotes or brackets)"
+            )
+    elif not (value is None or isinstance(value, bool | int | float)):
+        raise ValueError(f"{where}: {key}={value!r}: expected a number, a name or a list of them")
+
+
+def load_sweep(path: str | Path) -> dict[str, list[Any]]:
+    """``parameters`` of a wandb grid sweep file as name -> list of values, every key a config
+    field and every value plain (:func:`check_key`, :func:`check_value`)."""
+    try:
+        spec = yaml.safe_load(Path(path).read_text())
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    if not isinstance(spec, dict):
+        raise ValueError(
+            f"{path}: expected a mapping with `parameters:`, got {type(spec).__name__}"
+        )
+    if spec.get("method", "grid") != "grid":
+        raise ValueError(f"{path}: only grid sweeps run locally, got method={spec.get('method')!r}")
+    parameters = spec.get("parameters") or {}
+    if not isinstance(parameters, dict):
+        raise ValueError(f"{path}: `parameters:` must be a mapping of key -> {{values: [...]}}")
+    grid = {}
+    for name, param in parameters.items():
+        check_key(str(name), str(path))
+        if isinstance(param, dict) and isinstance(param.get("values"), list) and param["values"]:
+            grid[name] = list(param["values"])
+        elif isinstance(param, dict) and "value" in param:
+            grid[name] = [param["value"]]
+        else:
+            raise ValueError(
+                f"{path}: parameter {name!r} needs `values:` (a non-empty list) or `value:`, "
+                f"got {param!r}"
+            )
+        for value in grid[name]:
+            check_value(name, value, str(path))
+    if not grid:
+        raise ValueError(f"{path}: no parameters")
+    return grid
+
+
+def check_set(items: Sequence[str]) -> None:
+    """Refuse a ``--set`` override that is not ``field=value`` for a config field (or
+    ``+env.kwargs.NAME=value``, how a task keyword is added)."""
+    for item in items:
+        key, sep, _ = item.partition("=")
+        if sep and re.fullmatch(r"\+env\.kwargs\.[A-Za-z_][A-Za-z0-9_]*", key):
+            continue
+        if not sep:
+            raise ValueError(f"--set {item!r}: expected FIELD=VALUE")
+        check_key(key, f"--set {item!r}")
