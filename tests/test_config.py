@@ -6,6 +6,7 @@ from torchrl.envs import RenameTransform, TransformedEnv
 
 from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
+from gentlerl.agent.variants import discounted_horizon
 from gentlerl.envs import TASKS
 from gentlerl.envs.batched import available_cores
 from gentlerl.training import SCALES, make_config
@@ -191,13 +192,16 @@ def test_learner_cuts_the_bootstrap_of_intrinsic_heads_only_at_paper_scale(scale
     assert learner.loss.episodic.tolist() == episodic
 
 
-@pytest.mark.parametrize(
-    ("scale", "v_max"), [("cpu", (10.0, 0.0, 10.0)), ("paper", (100.0, 100.0, 100.0))]
-)
-def test_penalty_critic_support_tops_at_zero_at_cpu_scale(scale, v_max):
-    critic = AgentBuilder(make_config(scale), ToyHandEnv()).make_learner().loss.value_network
-    assert critic.module.v_max == v_max  # reward, penalty, penalty_surprise
-    assert critic.module.v_min == (make_config(scale).network.v_min,) * 3
+def test_critic_supports_per_head_at_cpu_scale_shared_at_paper_scale():
+    env = ToyHandEnv()
+    cpu = AgentBuilder(make_config("cpu"), env).make_learner().loss.value_network.module
+    span = discounted_horizon(0.99, env.time_limit)  # dense heads: 1 per step x the horizon
+    # reward, penalty, penalty_surprise: the task pays once (+-10), the dense heads +-span, the
+    # never-positive penalty tops at 0
+    assert cpu.v_min == pytest.approx((-10.0, -span, -span))
+    assert cpu.v_max == pytest.approx((10.0, 0.0, span))
+    paper = AgentBuilder(make_config("paper"), env).make_learner().loss.value_network.module
+    assert paper.v_min == (-100.0,) * 3 and paper.v_max == (100.0,) * 3  # the paper's (-100, 100)
 
 
 @pytest.mark.parametrize(("scale", "factor"), [("cpu", 0.002), ("paper", 1.0), ("real", 1.0)])

@@ -6,7 +6,8 @@ from gentlerl import keys
 from gentlerl.agent.variants import (
     COMPONENTS,
     VARIANTS,
-    head_v_max,
+    discounted_horizon,
+    head_supports,
     intrinsic_keys,
     reward_keys,
 )
@@ -32,9 +33,34 @@ def test_only_curiosity_rewards_are_intrinsic():
 
 def test_bounded_support_caps_never_positive_rewards_at_zero():
     heads = reward_keys("r+rf+rsp")
-    assert head_v_max(heads, 10.0, bounded=True) == [10.0, 0.0, 10.0]
-    assert head_v_max(heads, 10.0, bounded=False) == [10.0, 10.0, 10.0]
-    assert head_v_max(heads, -1.0, bounded=True) == [-1.0, -1.0, -1.0]  # never above v_max
+
+    def tops(v_max, bounded):
+        return head_supports(heads, v_min=-10.0, v_max=v_max, bounded=bounded)[1]
+
+    assert tops(10.0, bounded=True) == [10.0, 0.0, 10.0]
+    assert tops(10.0, bounded=False) == [10.0, 10.0, 10.0]
+    assert tops(-1.0, bounded=True) == [-1.0, -1.0, -1.0]  # never above v_max
+
+
+def test_discounted_horizon_is_the_geometric_sum():
+    # (1 - 0.99^200) / (1 - 0.99) = 86.60 (touch's 200 steps at the default gamma)
+    assert discounted_horizon(0.99, 200) == pytest.approx(86.6020, abs=1e-4)
+    assert discounted_horizon(0.5, 3) == pytest.approx(1 + 0.5 + 0.25)
+    assert discounted_horizon(1.0, 7) == 7.0
+    with pytest.raises(ValueError, match="gamma"):
+        discounted_horizon(1.5, 10)
+
+
+def test_dense_heads_get_a_horizon_wide_support_the_task_keeps_its_own():
+    heads = reward_keys("r+rf+rsp")  # task (terminal), penalty (dense, <= 0), rsp (dense)
+    lows, highs = head_supports(heads, v_min=-10.0, v_max=10.0, bounded=True, dense_span=86.6)
+    assert lows == [-10.0, -86.6, -86.6]
+    assert highs == [10.0, 0.0, 86.6]
+    # null span: one shared support (the paper's (-100, 100) as published)
+    lows, highs = head_supports(heads, v_min=-100.0, v_max=100.0, bounded=False)
+    assert lows == [-100.0] * 3 and highs == [100.0] * 3
+    with pytest.raises(ValueError, match="dense_span"):
+        head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=0.0)
 
 
 def test_learned_components_name_their_model():

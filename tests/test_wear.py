@@ -10,7 +10,7 @@ from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
-from gentlerl.agent.variants import head_v_max, reward_keys
+from gentlerl.agent.variants import head_supports, reward_keys
 from gentlerl.training.config import GentlenessConfig
 from gentlerl.transforms import ForcePenalty, TorquePenalty
 from tests.toy_env import ToyHandEnv
@@ -67,7 +67,7 @@ def test_variants_add_their_head_and_run_on_the_hand_env(variant, key):
     heads = [keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, key]
     assert reward_keys(variant) == heads
     # Never positive: with a bounded support the head's values stop at 0, like the impact penalty's.
-    assert head_v_max(heads, 10.0, bounded=True) == [10.0, 0.0, 10.0, 0.0]
+    assert head_supports(heads, v_min=-10.0, v_max=10.0, bounded=True)[1] == [10.0, 0.0, 10.0, 0.0]
     settings = GentlenessConfig(model_hidden=16, ensemble_size=2, reward_delay=0)
     features = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
     rewards = IntrinsicRewards(

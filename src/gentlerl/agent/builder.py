@@ -17,7 +17,12 @@ from torchrl.envs import EnvBase
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
 from gentlerl.agent.rewards import IntrinsicRewards
-from gentlerl.agent.variants import head_v_max, intrinsic_keys, reward_keys
+from gentlerl.agent.variants import (
+    discounted_horizon,
+    head_supports,
+    intrinsic_keys,
+    reward_keys,
+)
 from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
@@ -46,6 +51,29 @@ class AgentBuilder:
             k: tuple(spec[k].shape[batch_dims:]) for k in keys.DYNAMICS_FEATURES if k in spec.keys()
         }
         self.reward_keys = reward_keys(cfg.variant)
+        #: Steps per episode (the env's ``time_limit``): the horizon of the dense heads' supports.
+        self.horizon = int(getattr(env, "time_limit", 1000))
+
+    def head_supports(self) -> tuple[list[float], list[float]]:
+        """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.agent.variants.head_supports`.
+
+        A dense head spans ``network.dense_reward_bound`` x the discounted horizon of
+        ``time_limit`` steps (the largest return of a reward of that size at every step).
+        """
+        net = self.cfg.network
+        bound = net.dense_reward_bound
+        span = (
+            None
+            if bound is None
+            else bound * discounted_horizon(self.cfg.learner.gamma, self.horizon)
+        )
+        return head_supports(
+            self.reward_keys,
+            v_min=net.v_min,
+            v_max=net.v_max,
+            bounded=net.bounded_support,
+            dense_span=span,
+        )
 
     def make_intrinsic_rewards(self) -> IntrinsicRewards:
         return IntrinsicRewards(
@@ -60,14 +88,15 @@ class AgentBuilder:
     def make_learner(self) -> Learner:
         net, learner = self.cfg.network, self.cfg.learner
         actor = make_actor(self.obs_dim, self.action_dim, net.actor_hidden)
+        v_min, v_max = self.head_supports()
         critic = make_critic(
             self.obs_dim,
             self.action_dim,
             len(self.reward_keys),
             net.critic_hidden,
             net.num_atoms,
-            v_min=net.v_min,
-            v_max=head_v_max(self.reward_keys, net.v_max, net.bounded_support),
+            v_min=v_min,
+            v_max=v_max,
         )
         loss = MultiHeadD4PGLoss(
             actor,

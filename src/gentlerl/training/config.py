@@ -175,6 +175,11 @@ def validate(cfg: TrainConfig) -> None:
         problems.append(f"network.v_min={net.v_min} must be < network.v_max={net.v_max}")
     if net.bounded_support and not net.v_min < 0:
         problems.append(f"network.v_min={net.v_min} must be < 0 with bounded_support (v_max 0)")
+    if net.dense_reward_bound is not None and not 0 < net.dense_reward_bound < float("inf"):
+        problems.append(
+            f"network.dense_reward_bound={net.dense_reward_bound} must be a finite number > 0 "
+            "(or null: [v_min, v_max] for every head)"
+        )
     col = cfg.collector
     if col.overlap and col.kind != "single":
         problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")

@@ -31,6 +31,7 @@ SCALES: dict[str, dict[str, Any]] = {
             "v_min": -100.0,
             "v_max": 100.0,
             "bounded_support": False,
+            "dense_reward_bound": None,  # one shared support for every head, as published
         },
         "gentleness": {
             "reward_delay": 20_000,

@@ -111,6 +111,14 @@ class NetworkConfig:
     v_min: float = _f(-10.0, "bottom of every head's support")
     v_max: float = _f(10.0, "top of every head's support")
     bounded_support: bool = _f(True, "cap a head's v_max at its reward's bound (0 for penalties)")
+    # Measured at the cpu scale (touch, r+rf+rsp, paper hand): realised discounted penalty returns
+    # of -24 to -33 per episode start, outside [-10, 10]; r^sp ~1 per contact step. 1 x the
+    # discounted horizon (86.6 for 200 steps at gamma 0.99) covers both.
+    dense_reward_bound: float | None = _f(
+        1.0,
+        "per-step size of the dense rewards (penalty, curiosity): their heads span +-it x "
+        "(1 - gamma^T) / (1 - gamma); null: every head gets [v_min, v_max]",
+    )
 
 
 @dataclass
@@ -125,7 +133,9 @@ class GentlenessConfig:
     model_batch_size: int = _f(64, "transitions per ensemble member and model update")
     model_buffer_size: int = _f(100_000, "1-step transitions kept for the models")
     lr_model: float = _f(1e-3, "Adam step size of the models")
-    surprise_scale: float = _f(1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)")
+    surprise_scale: float = _f(
+        1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)"
+    )
     # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
     # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
     # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
