@@ -127,6 +127,7 @@ def test_watchdog_ends_the_episode_and_holds_the_last_safe_targets(sim_calibrati
         "trips": 1,
         "fingertip_trips": 1,
         "block_trips": 0,
+        "fault_trips": 0,
         "checks": len(steps),
     }
 

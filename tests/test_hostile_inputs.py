@@ -3,10 +3,15 @@ must not be, and safety checks that fail closed."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
+import torch
 
+from gentlerl import keys
+from gentlerl.envs.watchdog import ForceWatchdog
 from gentlerl.sweeps import main as sweep
 
 
@@ -99,3 +104,156 @@ def test_missing_sweep_file_and_bad_set_are_refused(tmp_path):
             sweep([good, "--out", str(tmp_path / "o"), "--set", item, "--dry-run"])
     assert sweep([good, "--out", str(tmp_path / "o"), "--dry-run", "--set",
                   "+env.kwargs.calibration=easy"]) == 0  # fmt: skip
+
+
+# --- the watchdog and the calibration fail closed ------------------------------------------
+
+
+def _linear_calibration(n_knots: int = 16):
+    from gentlerl.transforms import TouchCalibration
+
+    force = np.linspace(0, 20, 64)[:, None, None] * np.ones((1, 5, 1))
+    calibration = TouchCalibration(n_knots=n_knots)
+    calibration.fit(1000 + 100 * force, force)
+    return calibration, force
+
+
+@pytest.mark.parametrize(
+    "touch",
+    [np.full((5, 1), np.nan), np.full((5, 1), np.inf), np.full((5, 1), -50.0), np.zeros((0,))],
+)
+def test_the_watchdog_trips_on_readings_it_cannot_trust(touch):
+    watchdog = ForceWatchdog(fingertip_limit=3.0)
+    assert watchdog.check(touch, None)
+    assert watchdog.counts()["fault_trips"] == 1 and watchdog.trips == 1
+    assert not watchdog.check(np.zeros((5, 1)), None)
+
+
+@pytest.mark.parametrize("block", [float("nan"), None, -50.0])
+def test_the_block_watchdog_trips_on_a_missing_or_implausible_force(block):
+    watchdog = ForceWatchdog(fingertip_limit=None, block_limit=5.0)
+    assert watchdog.check(np.zeros((5, 1)), block) and watchdog.fault_trips == 1
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda c: c.force_knots.fill_(float("nan")), "must be finite"),
+        (lambda c: c.force_knots.zero_(), "spans 0 N"),
+        (lambda c: c.force_knots.copy_(c.force_knots.flip(-1)), "must not decrease"),
+        (lambda c: c.raw_knots.fill_(1.0), "strictly increasing"),
+        (lambda c: c.raw_zero.fill_(float("inf")), "raw_zero must be finite"),
+        (lambda c: c.fitted.fill_(False), "never fitted"),
+    ],
+)
+def test_a_tampered_calibration_file_is_refused_on_load(tmp_path, edit, match):
+    from gentlerl.transforms import TouchCalibration
+
+    calibration, _ = _linear_calibration()
+    edit(calibration)
+    path = tmp_path / "cal.pt"
+    calibration.save(path)
+    with pytest.raises(ValueError, match=match):
+        TouchCalibration.load(path)
+
+
+def test_a_blinding_calibration_cannot_reach_the_driver_env(driver_env):
+    from gentlerl.envs import SimulatedDriver
+
+    calibration, _ = _linear_calibration()
+    calibration.force_knots.zero_()
+    with pytest.raises(ValueError, match="spans 0 N"):
+        driver_env(SimulatedDriver(seed=0), "touch", calibration=calibration)
+
+
+@pytest.mark.parametrize(
+    "content", [b"", b"not a torch file", None], ids=["empty", "garbage", "truncated"]
+)
+def test_empty_truncated_or_foreign_calibration_files_are_refused(tmp_path, content):
+    from gentlerl.transforms import TouchCalibration
+
+    path = tmp_path / "cal.pt"
+    if content is None:
+        _linear_calibration()[0].save(path)
+        content = path.read_bytes()[:200]
+    path.write_bytes(content)
+    with pytest.raises(ValueError, match="is not a TouchCalibration file"):
+        TouchCalibration.load(path)
+    torch.save({"shape": (5, 1), "n_knots": 10**9, "state": {}}, path)
+    with pytest.raises(ValueError, match="not a hand's calibration"):
+        TouchCalibration.load(path)
+
+
+def test_fit_refuses_dead_inverted_and_unbounded_channels():
+    from gentlerl.transforms import TouchCalibration
+
+    _, force = _linear_calibration()
+    with pytest.raises(ValueError, match="dead channel"):
+        TouchCalibration(n_knots=8).fit(np.full_like(force, 1000.0), force)
+    with pytest.raises(ValueError, match="inverted"):
+        TouchCalibration(n_knots=8).fit(3000 - 100 * force, force)
+    for span in (float("nan"), -1.0, 0.0, "1"):
+        with pytest.raises(ValueError, match="min_span"):
+            TouchCalibration(n_knots=8).fit(1000 + 100 * force, force, min_span=span)
+
+
+def test_forward_map_refuses_non_finite_raw_readings():
+    calibration, _ = _linear_calibration()
+    for value in (-np.inf, np.inf, np.nan):
+        with pytest.raises(ValueError, match="must be finite"):
+            calibration.forward_map(np.full((5, 1), value))
+
+
+class _StallingDriver:
+    """A scripted driver whose ``read`` stalls from the ``stall_at``-th read on."""
+
+    def __init__(self, stall_at: int, block: float | None = None) -> None:
+        from gentlerl.envs.driver import DriverSpec
+
+        self.spec = DriverSpec(-np.ones(20), np.ones(20), has_block_force=block is not None)
+        self.reads, self.stall_at, self.block = 0, stall_at, block
+        self.commands: list[np.ndarray] = []
+        self.release = threading.Event()
+
+    def reset(self) -> np.ndarray:
+        return np.zeros(20)
+
+    def read(self):
+        from gentlerl.envs.driver import HandReading
+
+        self.reads += 1
+        if self.reads >= self.stall_at:
+            self.release.wait(5.0)
+        return HandReading(np.zeros(24), np.zeros(24), np.full((5, 1), 1000.0), self.block)
+
+    def command(self, targets: np.ndarray) -> None:
+        self.commands.append(np.array(targets))
+
+    def close(self) -> None:
+        self.release.set()
+
+
+def test_a_stalled_read_ends_the_episode_safely_and_says_so(driver_env):
+    from gentlerl.envs.driver import DriverTimeout
+
+    driver = _StallingDriver(stall_at=4)  # tare + reset read, one step, then a stall
+    env = driver_env(driver, "touch", calibration=_linear_calibration()[0], read_timeout=0.2)
+    td = env.reset()
+    td = env.step(td.set(keys.ACTION, torch.ones(20)))["next"]
+    held = driver.commands[-1]
+    with pytest.warns(RuntimeWarning, match="no reading within 0.2 s: episode ended"):
+        out = env.step(td.set(keys.ACTION, torch.ones(20)))["next"]
+    assert out[keys.TERMINATED].item() and out[keys.WATCHDOG].item() and env.read_timeouts == 1
+    np.testing.assert_allclose(driver.commands[-1], held)  # the last targets, re-commanded
+    with pytest.raises(DriverTimeout, match="still stalled"):
+        env.reset()
+    driver.release.set()
+    for bad in (0, -1.0, float("nan"), "1"):
+        with pytest.raises(ValueError, match="read_timeout"):
+            driver_env(_StallingDriver(99), calibration=_linear_calibration()[0], read_timeout=bad)
+
+
+def test_an_implausible_block_force_is_refused(driver_env):
+    env = driver_env(_StallingDriver(99, block=-50.0), calibration=_linear_calibration()[0])
+    with pytest.raises(ValueError, match="'block_force'=-50.0 N is implausible"):
+        env.reset()

@@ -16,6 +16,9 @@ e.g. BioTac pressure counts); the env maps them to newtons with a
 
 from __future__ import annotations
 
+import math
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -23,6 +26,7 @@ import numpy as np
 
 from gentlerl.envs.assets import CHANNELS, TOUCH_SITES
 from gentlerl.envs.hand import N_ACTUATORS, N_JOINTS
+from gentlerl.envs.watchdog import NEGATIVE_TOLERANCE
 
 N_SITES = len(TOUCH_SITES)
 
@@ -120,6 +124,11 @@ def check_reading(reading: HandReading, spec: DriverSpec) -> HandReading:
         if block is None:
             raise ValueError("driver reading 'block_force' is None but spec.has_block_force=True")
         block = float(_checked("block_force", block, ()))
+        if block < -NEGATIVE_TOLERANCE:
+            raise ValueError(
+                f"driver reading 'block_force'={block} N is implausible (a force sensor reads "
+                f">= -{NEGATIVE_TOLERANCE} N): a sensor fault or a sign error in the driver"
+            )
     elif block is not None:
         raise ValueError("driver reading 'block_force' is set but spec.has_block_force=False")
     effort = reading.actuator_force
@@ -149,3 +158,48 @@ def check_targets(targets: object, spec: DriverSpec, source: str) -> np.ndarray:
             f"outside [target_low, target_high]"
         )
     return array
+
+
+class DriverTimeout(TimeoutError):
+    """``driver.read()`` gave no reading within the read timeout."""
+
+
+class TimedRead:
+    """``driver.read()`` on a daemon thread, waited for at most ``timeout`` s (``None``: no limit).
+
+    A stalled read raises :class:`DriverTimeout` instead of blocking the control loop; while it
+    is still stalled, the next call waits for it (one read at a time) and raises again if it
+    does not finish within ``timeout``.
+    """
+
+    def __init__(self, read: Callable[[], HandReading], timeout: float | None) -> None:
+        if timeout is not None and not (
+            isinstance(timeout, int | float) and math.isfinite(timeout) and timeout > 0
+        ):
+            raise ValueError(f"read_timeout must be a positive number of seconds, got {timeout!r}")
+        self.read, self.timeout = read, timeout
+        self._thread: threading.Thread | None = None
+
+    def __call__(self) -> HandReading:
+        if self.timeout is None:
+            return self.read()
+        if self._thread is not None and self._thread.is_alive():
+            self._thread.join(self.timeout)
+            if self._thread.is_alive():
+                raise DriverTimeout(f"driver.read() is still stalled after {self.timeout} s more")
+        box: dict[str, object] = {}
+
+        def run() -> None:
+            try:
+                box["reading"] = self.read()
+            except BaseException as err:  # noqa: BLE001 - re-raised on the caller's thread
+                box["error"] = err
+
+        self._thread = threading.Thread(target=run, name="driver-read", daemon=True)
+        self._thread.start()
+        self._thread.join(self.timeout)
+        if self._thread.is_alive():
+            raise DriverTimeout(f"driver.read() gave no reading within {self.timeout} s")
+        if "error" in box:
+            raise box["error"]  # type: ignore[misc]
+        return box["reading"]  # type: ignore[return-value]

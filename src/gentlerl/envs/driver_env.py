@@ -8,6 +8,7 @@ in [-1, 1]^20 at 20 Hz, scaled and clipped to the target limits by the task's ow
 
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -21,8 +22,10 @@ from gentlerl.envs.assets import CHANNELS, GRID
 from gentlerl.envs.driver import (
     N_ACTUATORS,
     N_SITES,
+    DriverTimeout,
     HandDriver,
     HandReading,
+    TimedRead,
     check_reading,
     check_targets,
 )
@@ -66,6 +69,10 @@ class DriverHandEnv(EnvBase):
         tare: subtract each channel's reading at reset (hand open, nothing touched) from the
             calibration's zero level, cancelling sensor drift since the fit.
         close_driver: :meth:`close` also closes the driver (False when envs share one driver).
+        read_timeout: seconds a ``driver.read()`` may take (``None``: no limit). A step whose
+            read stalls past it ends the episode as a watchdog trip does (terminated, the last
+            targets re-commanded and held, ``watchdog=True``), warns, and counts in
+            ``read_timeouts``; a reset whose read stalls raises :class:`DriverTimeout`.
         **task_kwargs: the task's arguments (``force_threshold``, ``break_impact``,
             ``action_scale``); with a task object, none.
     """
@@ -80,6 +87,7 @@ class DriverHandEnv(EnvBase):
         time_limit: int = 200,
         tare: bool = True,
         close_driver: bool = True,
+        read_timeout: float | None = 1.0,
         **task_kwargs: Any,
     ) -> None:
         super().__init__(device="cpu", batch_size=torch.Size([]))
@@ -92,6 +100,7 @@ class DriverHandEnv(EnvBase):
             )
         if not bool(calibration.fitted):
             raise ValueError("calibration is not fitted: call fit(raw, force) or load it first")
+        calibration.validate()  # a NaN or flat map would blind the watchdog
         if watchdog is not None and watchdog.block_limit and not self.driver_spec.has_block_force:
             raise ValueError("watchdog.block_limit is set but the driver has no block sensor")
         if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
@@ -99,6 +108,7 @@ class DriverHandEnv(EnvBase):
                 f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}"
             )
         self.calibration, self.watchdog = calibration, watchdog
+        self.read, self.read_timeouts = TimedRead(driver.read, read_timeout), 0
         self.time_limit, self.tare, self.close_driver = int(time_limit), tare, close_driver
         self.targets = np.zeros(len(self.driver_spec.target_low))
         self.offset: torch.Tensor | None = None
@@ -116,7 +126,7 @@ class DriverHandEnv(EnvBase):
     # -- one reading ----------------------------------------------------------------------------
     def _sense(self) -> tuple[np.ndarray, HandReading]:
         """Read the driver; return the calibrated ``touch`` [5, 3] (N) and the checked reading."""
-        reading = check_reading(self.driver.read(), self.driver_spec)
+        reading = check_reading(self.read(), self.driver_spec)
         force = self.calibration.forward_map(reading.tactile, self.offset).numpy()
         touch = np.zeros((N_SITES, CHANNELS))
         touch[:, : force.shape[-1]] = force
@@ -147,10 +157,10 @@ class DriverHandEnv(EnvBase):
         self.targets = check_targets(self.driver.reset(), self.driver_spec, "driver.reset()")
         self.offset = None
         if self.tare:
-            at_rest = check_reading(self.driver.read(), self.driver_spec).tactile
+            at_rest = check_reading(self.read(), self.driver_spec).tactile
             self.offset = self.calibration.tare(at_rest)
         touch, reading = self._sense()
-        self.touch, self.steps = touch, 0
+        self.touch, self.reading, self.steps = touch, reading, 0
         self.task.success = self.task.broken = False
         return self._output(touch, reading, {keys.WATCHDOG: False})
 
@@ -159,7 +169,10 @@ class DriverHandEnv(EnvBase):
         low, high = self.driver_spec.target_low, self.driver_spec.target_high
         targets = self.task.next_targets(self.targets, action, low, high)
         self.driver.command(targets)
-        touch, reading = self._sense()
+        try:
+            touch, reading = self._sense()
+        except DriverTimeout as err:
+            return self._timed_out(err)
         block = reading.block_force
         tripped = self.watchdog is not None and self.watchdog.check(touch, block)
         if tripped:
@@ -169,7 +182,7 @@ class DriverHandEnv(EnvBase):
         sensing = touch[:, 0] > CONTACT_FORCE
         on_block = sensing & (block > CONTACT_FORCE) if block is not None else sensing
         self.task.update_outcome(touch, self.touch, on_block)
-        self.touch, self.steps = touch, self.steps + 1
+        self.touch, self.reading, self.steps = touch, reading, self.steps + 1
         terminated = tripped or self.task.get_termination(None) is not None
         truncated = not terminated and self.steps >= self.time_limit
         td = self._output(
@@ -183,6 +196,17 @@ class DriverHandEnv(EnvBase):
             },
         )
         td.set(keys.REWARD, torch.tensor([self.task.get_reward(None)], dtype=torch.float32))
+        return td
+
+    def _timed_out(self, err: DriverTimeout) -> TensorDictBase:
+        """End the episode safely after a stalled read: the last targets held, the last reading
+        repeated, ``watchdog`` and ``terminated`` set, no reward."""
+        self.driver.command(self.targets)
+        self.read_timeouts += 1
+        warnings.warn(f"{err}: episode ended, last targets held", RuntimeWarning, stacklevel=2)
+        flags = dict.fromkeys((keys.WATCHDOG, keys.TERMINATED, keys.DONE), True)
+        td = self._output(self.touch, self.reading, {**flags, keys.TRUNCATED: False})
+        td.set(keys.REWARD, torch.zeros(1))
         return td
 
     def _set_seed(self, seed: int | None) -> None:

@@ -6,6 +6,13 @@ import math
 
 import numpy as np
 
+#: N: a calibrated force below minus this is a sensor fault, not a force.
+NEGATIVE_TOLERANCE = 1.0
+
+
+def _plausible(force: np.ndarray) -> bool:
+    return bool(np.isfinite(force).all() and (force >= -NEGATIVE_TOLERANCE).all())
+
 
 def _limit(name: str, value: float | None) -> float | None:
     if value is None:
@@ -35,8 +42,9 @@ class ForceWatchdog:
         block_limit: N, compared with the block sensor's force; ``None``: not watched.
 
     Attributes:
-        trips: trips so far; ``fingertip_trips`` / ``block_trips`` by cause (a step over both
-            limits counts in both), ``checks``: steps checked.
+        trips: trips so far; ``fingertip_trips`` / ``block_trips`` / ``fault_trips`` (a reading
+            that cannot be trusted) by cause (a step over both limits counts in both),
+            ``checks``: steps checked.
     """
 
     def __init__(
@@ -46,26 +54,35 @@ class ForceWatchdog:
         self.block_limit = _limit("block_limit", block_limit)
         if self.fingertip_limit is None and self.block_limit is None:
             raise ValueError("ForceWatchdog needs fingertip_limit and/or block_limit, got neither")
-        self.trips = self.fingertip_trips = self.block_trips = self.checks = 0
+        self.trips = self.fingertip_trips = self.block_trips = self.fault_trips = 0
+        self.checks = 0
 
     def check(self, touch: np.ndarray, block_force: float | None) -> bool:
-        """Whether this step's forces trip the watchdog (and count it).
+        """Whether this step's forces trip the watchdog (and count it). Fails closed: a reading
+        that is not finite, of the wrong shape or implausibly negative (below
+        ``-NEGATIVE_TOLERANCE`` N) trips it too (``fault_trips``), as does a missing block force
+        when ``block_limit`` is set.
 
         ``touch``: ``[5, C]`` calibrated fingertip forces (N); ``block_force``: N or ``None``.
         """
         self.checks += 1
-        tip = self.fingertip_limit is not None and bool(
-            (np.asarray(touch).sum(-1) > self.fingertip_limit).any()
-        )
-        block = (
-            self.block_limit is not None
-            and block_force is not None
-            and block_force > self.block_limit
-        )
+        touch = np.asarray(touch, dtype=np.float64)
+        tip = block = fault = False
+        if self.fingertip_limit is not None:
+            if touch.ndim != 2 or touch.size == 0 or not _plausible(touch):
+                fault = True
+            else:
+                tip = bool((touch.sum(-1) > self.fingertip_limit).any())
+        if self.block_limit is not None:
+            if block_force is None or not _plausible(np.asarray(block_force, dtype=np.float64)):
+                fault = True
+            else:
+                block = float(block_force) > self.block_limit
         self.fingertip_trips += tip
         self.block_trips += block
-        self.trips += tip or block
-        return tip or block
+        self.fault_trips += fault
+        self.trips += tip or block or fault
+        return tip or block or fault
 
     def counts(self) -> dict[str, int]:
         """``trips``, ``fingertip_trips``, ``block_trips``, ``checks`` (for logs and reports)."""
@@ -73,6 +90,7 @@ class ForceWatchdog:
             "trips": self.trips,
             "fingertip_trips": self.fingertip_trips,
             "block_trips": self.block_trips,
+            "fault_trips": self.fault_trips,
             "checks": self.checks,
         }
 

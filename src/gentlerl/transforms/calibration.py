@@ -9,6 +9,7 @@ samples (raw reading, reference force in N, e.g. from the force/torque sensor un
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -23,6 +24,8 @@ from gentlerl import keys
 ZERO_FORCE = 0.05
 # Samples with at least this reference force (N) make the "pressed" fit error.
 PRESSED_FORCE = 0.5
+# A file asking for more knots than this (all channels together) is refused before allocating.
+_MAX_KNOTS = 1_000_000
 
 
 def isotonic_regression(y: np.ndarray) -> np.ndarray:
@@ -63,6 +66,17 @@ def _interp(x: torch.Tensor, xp: torch.Tensor, fp: torch.Tensor) -> torch.Tensor
     y0, y1 = fp.gather(-1, idx - 1), fp.gather(-1, idx)
     t = ((xs - x0) / (x1 - x0)).clamp(min=0.0)
     return (y0 + t * (y1 - y0)).permute(2, 0, 1)
+
+
+def _check_channel(s: int, c: int, x: np.ndarray, y: np.ndarray) -> None:
+    """Refuse a dead channel (constant raw) or an inverted one (more force, lower reading)."""
+    if float(x.max() - x.min()) <= 0.0:
+        raise ValueError(f"fingertip {s} channel {c}: the raw reading is constant (dead channel)")
+    if float(np.corrcoef(x, y)[0, 1]) <= 0.0:
+        raise ValueError(
+            f"fingertip {s} channel {c}: the raw reading falls as the reference force rises "
+            "(inverted or miswired sensor)"
+        )
 
 
 class TouchCalibration(Transform):
@@ -143,6 +157,10 @@ class TouchCalibration(Transform):
             )
         if not (np.isfinite(raw).all() and np.isfinite(force).all()):
             raise ValueError("fit: raw and force must be finite")
+        if not (isinstance(min_span, int | float) and min_span >= PRESSED_FORCE):
+            raise ValueError(
+                f"fit: min_span must be a number >= {PRESSED_FORCE} N, got {min_span!r}"
+            )
         k = self.raw_knots.shape[-1]
         if raw.shape[0] < 2 * k:
             raise ValueError(f"fit needs at least {2 * k} samples (2 per knot), got {raw.shape[0]}")
@@ -154,6 +172,7 @@ class TouchCalibration(Transform):
                     f"fingertip {s} channel {c}: the reference force spans "
                     f"{span:.2f} N, needs >= {min_span} N; press that fingertip while calibrating"
                 )
+            _check_channel(s, c, x, y)
             order = np.argsort(x, kind="stable")
             x, y_fit = x[order], isotonic_regression(y[order])
             # Strictly increasing knots (a flat stretch maps to one raw value in the inverse).
@@ -164,6 +183,7 @@ class TouchCalibration(Transform):
             resting = x[y_fit <= ZERO_FORCE]
             self.raw_zero[s, c] = float(np.median(resting)) if resting.size else x[0]
         self.fitted.fill_(True)
+        self.validate()
         error = self.forward_map(raw).numpy() - force
         self.fit_rmse.copy_(torch.from_numpy(np.sqrt((error**2).mean(0))))
         return fit_errors(error, force)
@@ -178,6 +198,8 @@ class TouchCalibration(Transform):
         sensor's baseline drift since the fit.
         """
         raw = self._check(raw, "raw")
+        if not bool(torch.isfinite(raw).all()):
+            raise ValueError("forward_map: raw readings must be finite (a sensor fault?)")
         if offset is not None:
             raw = raw - torch.as_tensor(offset, dtype=torch.float64)
         flat = raw.reshape(-1, *self.shape)
@@ -221,7 +243,45 @@ class TouchCalibration(Transform):
     @classmethod
     def load(cls, path: str | Path) -> TouchCalibration:
         """A calibration written by :meth:`save`."""
-        blob = torch.load(Path(path), weights_only=True)
-        calibration = cls(*blob["shape"], n_knots=blob["n_knots"])
-        calibration.load_state_dict(blob["state"])
+        try:
+            blob = torch.load(Path(path), weights_only=True)
+            sizes = (*blob["shape"], blob["n_knots"])
+            if len(sizes) != 3 or math.prod(sizes) > _MAX_KNOTS:
+                raise ValueError(f"sites x channels x knots {sizes} is not a hand's calibration")
+            calibration = cls(*blob["shape"], n_knots=blob["n_knots"])
+            calibration.load_state_dict(blob["state"])
+        except FileNotFoundError:
+            raise
+        except Exception as err:  # noqa: BLE001 - truncated, empty, foreign: one clear error
+            raise ValueError(
+                f"{path} is not a TouchCalibration file written by save() ({err})"
+            ) from None
+        if not bool(calibration.fitted):
+            raise ValueError(f"{path}: the calibration it holds was never fitted")
+        try:
+            calibration.validate()
+        except ValueError as err:
+            raise ValueError(f"{path}: {err}") from None
         return calibration
+
+    def validate(self) -> None:
+        """Refuse a map that cannot be trusted by a safety check: non-finite knots, raw knots not
+        strictly increasing, forces decreasing, or a channel whose forces span < 0.5 N (dead,
+        inverted or never pressed)."""
+        raw, force = self.raw_knots, self.force_knots
+        for s, c in np.ndindex(self.shape):
+            where = f"fingertip {s} channel {c}"
+            if not bool(torch.isfinite(raw[s, c]).all() & torch.isfinite(force[s, c]).all()):
+                raise ValueError(f"{where}: calibration knots must be finite")
+            if not bool((raw[s, c].diff() > 0).all()):
+                raise ValueError(f"{where}: raw knots must be strictly increasing")
+            if not bool((force[s, c].diff() >= 0).all()):
+                raise ValueError(f"{where}: force knots must not decrease (inverted sensor?)")
+            span = float(force[s, c, -1] - force[s, c, 0])
+            if span < PRESSED_FORCE:
+                raise ValueError(
+                    f"{where}: the map spans {span:.3g} N, needs >= {PRESSED_FORCE} N (a dead or "
+                    "inverted sensor, or a fingertip never pressed while calibrating)"
+                )
+        if not bool(torch.isfinite(self.raw_zero).all()):
+            raise ValueError("calibration raw_zero must be finite")
