@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "evaluate": ("gentlerl.evaluate", "success, broken rate and impacts of a saved policy"),
     "claims": ("gentlerl.claims", "the paper's six claims judged on a reproduce.sh grid"),
     "export": ("gentlerl.export", "runs' final actors as small policy files (no buffer, critics)"),
+    "calibration": ("gentlerl.diagnostics", "each critic head's predicted Q vs realised return"),
 }
 
 

@@ -1,4 +1,4 @@
-"""Evaluation rollouts without exploration noise."""
+"""Evaluation rollouts without exploration noise (and, for diagnostics, with it)."""
 
 from __future__ import annotations
 
@@ -11,50 +11,62 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from gentlerl import keys
 
 
-def _episode_stats(rollout: TensorDictBase) -> list[dict[str, float]]:
-    """One dict per row of a ``[B, T]`` rollout, over the steps up to the row's first ``done``."""
-    nxt = rollout.get("next")
-    done = nxt.get(keys.DONE).reshape(*rollout.shape).int()
-    valid = (done.cumsum(-1) - done) == 0  # steps before and at the first done
-    impact = nxt.get(keys.IMPACT).reshape(*rollout.shape, -1).amax(-1)
-    columns = {
-        "success": nxt.get(keys.SUCCESS).reshape(*rollout.shape),
-        "broken": nxt.get(keys.BROKEN).reshape(*rollout.shape),
-    }
-    reward = nxt.get(keys.REWARD).reshape(*rollout.shape)
-    return [
-        {
-            **{name: float(col[b][valid[b]].any()) for name, col in columns.items()},
-            "max_impact": float(impact[b][valid[b]].max()),
-            "return": float(reward[b][valid[b]].sum()),
-        }
-        for b in range(rollout.shape[0])
-    ]
+def _split_episodes(rollout: TensorDictBase) -> list[TensorDictBase]:
+    """Each row of a ``[B, T]`` rollout up to and including its first ``done`` (all ``T`` steps
+    where it has none: the episode was cut by ``max_steps``)."""
+    done = rollout.get(("next", keys.DONE)).reshape(*rollout.shape).int()
+    length = ((done.cumsum(-1) - done) == 0).sum(-1)  # steps before and at the first done
+    return [rollout[b, : int(length[b])] for b in range(rollout.shape[0])]
 
 
 @torch.no_grad()
-def evaluate(
-    env: EnvBase, actor: TensorDictModule, episodes: int, max_steps: int
-) -> tuple[dict[str, float], list[dict[str, float]]]:
-    """Run ``episodes`` deterministic episodes; ``env`` must write ``impact`` (``ImpactPenalty``).
+def rollout_episodes(
+    env: EnvBase,
+    policy: TensorDictModule,
+    episodes: int,
+    max_steps: int,
+    exploration: ExplorationType = ExplorationType.DETERMINISTIC,
+) -> list[TensorDictBase]:
+    """``episodes`` episodes of ``policy``, each a ``[T_i]`` tensordict ending at its first
+    ``done`` (or after ``max_steps`` steps).
 
     A batched env (batch size ``[N]``) runs ``N`` episodes at a time, each hand until its first
     ``done`` (TorchRL's ``break_when_all_done``); a single env runs them one after the other.
-    Returns the summary (``success_rate``, ``broken_rate``, ``max_impact_mean``, ``return``) and
-    one dict per episode (``success``, ``broken``, ``max_impact`` in N, ``return``).
+    ``exploration``: TorchRL's exploration type while acting (``RANDOM`` lets an exploration
+    policy add its noise).
     """
-    per_episode: list[dict[str, float]] = []
-    with set_exploration_type(ExplorationType.DETERMINISTIC):
-        while len(per_episode) < episodes:
+    out: list[TensorDictBase] = []
+    with set_exploration_type(exploration):
+        while len(out) < episodes:
             if env.batch_size:
                 rollout = env.rollout(
-                    max_steps, actor, break_when_any_done=False, break_when_all_done=True
+                    max_steps, policy, break_when_any_done=False, break_when_all_done=True
                 )
-                per_episode += _episode_stats(rollout.reshape(-1, rollout.shape[-1]))
+                out += _split_episodes(rollout.reshape(-1, rollout.shape[-1]))
             else:
-                rollout = env.rollout(max_steps, actor, break_when_any_done=True)
-                per_episode += _episode_stats(rollout.unsqueeze(0))
-    per_episode = per_episode[:episodes]
+                rollout = env.rollout(max_steps, policy, break_when_any_done=True)
+                out += _split_episodes(rollout.unsqueeze(0))
+    return out[:episodes]
+
+
+def episode_stats(episode: TensorDictBase) -> dict[str, float]:
+    """``success``, ``broken`` (0/1), ``max_impact`` (N, eq. 1) and the task ``return`` of one
+    ``[T]`` episode of :func:`rollout_episodes` (the env must write ``impact``)."""
+    nxt = episode.get("next")
+    return {
+        "success": float(nxt.get(keys.SUCCESS).any()),
+        "broken": float(nxt.get(keys.BROKEN).any()),
+        "max_impact": float(nxt.get(keys.IMPACT).max()),
+        "return": float(nxt.get(keys.REWARD).sum()),
+    }
+
+
+def summarize_episodes(
+    episodes: list[TensorDictBase],
+) -> tuple[dict[str, float], list[dict[str, float]]]:
+    """The summary (``success_rate``, ``broken_rate``, ``max_impact_mean``, ``return``) and the
+    :func:`episode_stats` of each of ``episodes``."""
+    per_episode = [episode_stats(e) for e in episodes]
     n = max(len(per_episode), 1)
     summary = {
         "success_rate": sum(e["success"] for e in per_episode) / n,
@@ -63,6 +75,18 @@ def evaluate(
         "return": sum(e["return"] for e in per_episode) / n,
     }
     return summary, per_episode
+
+
+def evaluate(
+    env: EnvBase, actor: TensorDictModule, episodes: int, max_steps: int
+) -> tuple[dict[str, float], list[dict[str, float]]]:
+    """Run ``episodes`` deterministic episodes; ``env`` must write ``impact`` (``ImpactPenalty``).
+
+    Returns the summary (``success_rate``, ``broken_rate``, ``max_impact_mean``, ``return``) and
+    one dict per episode (``success``, ``broken``, ``max_impact`` in N, ``return``); see
+    :func:`rollout_episodes` for how a batched env runs them.
+    """
+    return summarize_episodes(rollout_episodes(env, actor, episodes, max_steps))
 
 
 def rank(result: dict[str, float]) -> tuple[float, float, float]:

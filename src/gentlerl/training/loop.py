@@ -38,7 +38,8 @@ from gentlerl.training.checkpoint import (
     save_checkpoint,
 )
 from gentlerl.training.config import TrainConfig, validate
-from gentlerl.training.evaluation import evaluate, rank
+from gentlerl.training.critic_calibration import calibration_scalars, measure_calibration
+from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger
 from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
 
@@ -217,9 +218,14 @@ class Trainer:
 
     def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
         episodes = self.cfg.logging.eval_episodes
-        summary, per_episode = evaluate(eval_env, self.learner.actor, episodes, self.max_steps)
+        rollouts = rollout_episodes(eval_env, self.learner.actor, episodes, self.max_steps)
+        summary, per_episode = summarize_episodes(rollouts)
         frames = self.counters["frames"]
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
+        # The same episodes: each critic head's predicted Q against its realised return.
+        loss, gamma = self.learner.loss, self.cfg.learner.gamma
+        calibration = measure_calibration(loss, self.rewards.transform, rollouts, gamma)
+        logger.log(calibration_scalars(calibration), frames)
         logger.log_eval_episodes(frames, per_episode)
         self.eval_history.append({"frames": frames, **summary})
         self._keep_best({"frames": frames, **summary})

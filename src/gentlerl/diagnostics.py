@@ -1,0 +1,170 @@
+"""Critic calibration of a run: ``gentlerl calibration RUN_DIR_OR_CHECKPOINT [--episodes N]``.
+
+Loads a run's full ``checkpoint.pt`` (actor, critics, reward models and whether the curiosity
+rewards are on), rolls its actor out on the run's task, deterministically and with the run's
+exploration noise (``collector.sigma``), and prints per critic head the mean predicted Q against
+the mean realised discounted return (:mod:`gentlerl.training.critic_calibration`), over every
+step and at episode start, with the fraction of realised returns outside the head's support.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import torch
+from torchrl.envs.utils import ExplorationType
+
+#: Rollout modes: the deterministic actor, and the actor with its training noise.
+MODES = {"deterministic": ExplorationType.DETERMINISTIC, "noisy": ExplorationType.RANDOM}
+
+
+def _checkpoint_path(path: str | os.PathLike) -> Path:
+    path = Path(path)
+    return path / "checkpoint.pt" if path.is_dir() else path
+
+
+def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, int | None]:
+    """``(config, learner, intrinsic rewards, frames)`` restored from a run's directory or its
+    ``checkpoint.pt``; a ``ValueError`` (one line) for anything else."""
+    from gentlerl.agent.builder import AgentBuilder
+    from gentlerl.envs import make_env
+    from gentlerl.training.checkpoint import (
+        POLICY_KEYS,
+        load_checkpoint,
+        policy_frames,
+        policy_from_state,
+    )
+
+    ckpt = _checkpoint_path(path)
+    try:
+        state = load_checkpoint(ckpt)
+    except FileNotFoundError as err:
+        raise ValueError(f"{err}: pass a run directory or its checkpoint.pt") from None
+    missing = [k for k in POLICY_KEYS if k not in state]
+    if missing:
+        raise ValueError(f"{ckpt} is not a gentlerl checkpoint: it lacks {missing}")
+    if "learner" not in state or "intrinsic" not in state:
+        raise ValueError(
+            f"{ckpt} holds an actor only (a best_policy.pt or an exported policy): the critics "
+            "are in the run's checkpoint.pt"
+        )
+    env = None
+    try:
+        cfg, _ = policy_from_state(state, ckpt)
+        env = make_env(cfg.task, seed=cfg.seed, **cfg.env.kwargs)
+        builder = AgentBuilder(cfg, env)
+        learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()
+        learner.loss.load_state_dict(state["learner"]["networks"])
+        rewards.load_state_dict(state["intrinsic"])
+    except (RuntimeError, KeyError, ValueError, TypeError) as err:
+        reason = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
+        raise ValueError(f"{ckpt} does not match this gentlerl's agent ({reason})") from None
+    finally:
+        if env is not None:
+            env.close()
+    return cfg, learner, rewards, policy_frames(state)
+
+
+def critic_calibration(
+    path: str | os.PathLike, episodes: int = 10, seed: int = 0
+) -> dict[str, Any]:
+    """Calibration of every critic head of the run at ``path``, per rollout mode (:data:`MODES`):
+    ``{"checkpoint", "task", "variant", "frames", "gamma", "sigma", "intrinsic_on", "episodes",
+    "seed", "modes": {mode: {head: {"all" | "start": stats}}}}`` (see
+    :func:`~gentlerl.training.critic_calibration.measure_calibration`).
+
+    Both modes start from the same block placements (the env is seeded with ``seed``).
+    """
+    from gentlerl.envs import make_env
+    from gentlerl.models import make_exploration_policy
+    from gentlerl.training.builders import make_eval_env
+    from gentlerl.training.critic_calibration import measure_calibration
+    from gentlerl.training.evaluation import rollout_episodes
+
+    if not (isinstance(episodes, int) and episodes >= 1):
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    cfg, learner, rewards, frames = load_agent(path)
+    actor = learner.actor
+    policies = {
+        "deterministic": actor,
+        "noisy": make_exploration_policy(actor, cfg.collector.sigma),
+    }
+    env = make_eval_env(partial(make_env, cfg.task, **cfg.env.kwargs), seed, episodes)
+    report: dict[str, Any] = {
+        "checkpoint": str(_checkpoint_path(path)),
+        "task": cfg.task,
+        "variant": cfg.variant,
+        "frames": frames,
+        "gamma": cfg.learner.gamma,
+        "sigma": cfg.collector.sigma,
+        "intrinsic_on": rewards.intrinsic_on,
+        "episodes": episodes,
+        "seed": seed,
+        "modes": {},
+    }
+    try:
+        for mode, exploration in MODES.items():
+            env.set_seed(seed)
+            torch.manual_seed(seed)
+            # The env's own time limit ends every episode before this cap.
+            eps = rollout_episodes(env, policies[mode], episodes, 100_000, exploration)
+            calib = measure_calibration(learner.loss, rewards.transform, eps, cfg.learner.gamma)
+            report["modes"][mode] = calib
+    finally:
+        env.close()
+    return report
+
+
+def format_table(report: dict[str, Any]) -> str:
+    """A text table: one row per head, mode and where (every step / episode start)."""
+    lines = [
+        f"{report['checkpoint']}: {report['task']} {report['variant']}, {report['frames']} "
+        f"frames, gamma {report['gamma']}, sigma {report['sigma']}, intrinsic "
+        f"{'on' if report['intrinsic_on'] else 'off'}; {report['episodes']} episodes per mode "
+        f"(seed {report['seed']})",
+        f"{'head':<18} {'mode':<13} {'where':<5} {'predicted':>9} {'realised':>9} {'bias':>9} "
+        f"{'mae':>8} {'rel_err':>8} {'outside':>7}",
+    ]
+    for mode, heads in report["modes"].items():
+        for head, where in heads.items():
+            for at, s in where.items():
+                lines.append(
+                    f"{head:<18} {mode:<13} {at:<5} {s['predicted']:>9.3f} {s['realised']:>9.3f} "
+                    f"{s['bias']:>+9.3f} {s['mae']:>8.3f} {s['rel_error']:>8.2f} "
+                    f"{s['outside_support']:>7.2f}"
+                )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") -> dict[str, Any]:
+    from gentlerl.cli import command_parser
+
+    parser = command_parser(prog, __doc__.splitlines()[0])
+    parser.add_argument("run", help="a run directory or its checkpoint.pt (not an actor-only file)")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes per rollout mode")
+    parser.add_argument("--seed", type=int, default=0, help="block placements and noise")
+    parser.add_argument("--json", metavar="PATH", help="also write the report as JSON there")
+    args = parser.parse_args(argv)
+    from gentlerl.training.checkpoint import CheckpointError
+
+    try:
+        report = critic_calibration(args.run, args.episodes, args.seed)
+    except (ValueError, CheckpointError) as err:
+        raise SystemExit(f"{prog}: error: {str(err).splitlines()[0]}") from None
+    print(format_table(report))
+    if args.json:
+        out = Path(args.json)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_name(f".{out.name}.tmp")
+        tmp.write_text(json.dumps(report, indent=1))
+        tmp.replace(out)
+    return report
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,198 @@
+r"""Critic calibration: each head's predicted Q against the return its reward really earns.
+
+Along rollouts of an actor, head :math:`k` of the multi-head D4PG critic predicts
+:math:`\hat Q^k_t = \mathbb{E}[Z^k(s_t, a_t)]` at the action :math:`a_t` taken; the realised
+return of that head from step :math:`t` on is the discounted sum of its reward component (computed
+by the run's own reward transforms, with their current models), bootstrapped where the episode is
+cut as the learner bootstraps it (:class:`~gentlerl.objectives.MultiHeadD4PGLoss`): with the
+critic's own :math:`\hat Q^k(s', \pi(s'))` at the last next-state after a truncation (time limit),
+and after a termination too for the heads that are not episodic; an episodic head's return stops
+at termination. A calibrated critic has :math:`\hat Q \approx G` on average (its bias near 0) and
+its realised returns inside the head's support :math:`[v_{min}, v_{max}]`.
+
+Used by the ``gentlerl calibration`` command (:mod:`gentlerl.diagnostics`) and, on the
+deterministic evaluation episodes, by the training loop (``calibration/<head>/...`` scalars).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.envs.transforms import Transform
+
+from gentlerl import keys
+from gentlerl.objectives import MultiHeadD4PGLoss
+
+#: The statistics of :func:`calibration_stats`, in table order.
+STATS = ("predicted", "realised", "bias", "mae", "rel_error", "outside_support")
+#: Where they are taken: every step, or the first step of each episode.
+WHERE = ("all", "start")
+
+
+def expected_value(logits: torch.Tensor, atoms: torch.Tensor) -> torch.Tensor:
+    r"""Expected value of categorical distributions: :math:`Q = \sum_j \mathrm{softmax}(l)_j z_j`.
+
+    Args:
+        logits, atoms: ``[..., num_atoms]`` (e.g. the critic's ``[..., K, num_atoms]``).
+
+    Returns ``[...]``. Example: logits ``[0, 0]`` on atoms ``[-1, 3]`` -> 1.0.
+    """
+    if logits.shape[-1] != atoms.shape[-1]:
+        raise ValueError(f"logits {tuple(logits.shape)} and atoms {tuple(atoms.shape)} differ")
+    return (logits.softmax(-1) * atoms).sum(-1)
+
+
+def discounted_returns(
+    rewards: torch.Tensor,
+    done: torch.Tensor,
+    bootstrap: torch.Tensor,
+    gamma: float,
+    cut: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""Realised discounted returns of consecutive episodes laid end to end along the last dim.
+
+    .. math::
+        G_t = r_t + \gamma \left[(1 - d_t)\, G_{t+1} + d_t (1 - c_t)\, B_t\right],
+        \qquad d_{T-1} := 1,
+
+    where :math:`d_t` says that the episode ends after step :math:`t`, :math:`c_t` that its
+    bootstrap is cut there (an episodic head's termination) and :math:`B_t` is the value of the
+    next state :math:`s_{t+1}` (read only where :math:`d_t`). The last step always ends a segment:
+    a rollout cut by a step limit is bootstrapped like a truncation.
+
+    Args:
+        rewards: ``[..., T]``.
+        done, cut: ``[..., T]`` bool (``cut`` defaults to no termination: always bootstrap).
+        bootstrap: ``[..., T]``.
+        gamma: discount per step, in [0, 1].
+
+    Example: rewards ``[1, 1, 1]``, done only at the end, gamma 0.5, bootstrap 4 ->
+    ``[1.75 + 0.5, 1.5 + 1, 1 + 2] = [2.25, 2.5, 3.0]``; cut there -> ``[1.75, 1.5, 1.0]``.
+    """
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"gamma must be in [0, 1], got {gamma}")
+    if rewards.shape[-1] == 0:
+        return rewards.clone()
+    done = done.bool().expand_as(rewards).clone()
+    done[..., -1] = True
+    cut = torch.zeros_like(done) if cut is None else cut.bool().expand_as(rewards)
+    tail = bootstrap * (~cut).to(rewards.dtype)
+    returns = torch.empty_like(rewards)
+    following = torch.zeros_like(rewards[..., 0])
+    for t in range(rewards.shape[-1] - 1, -1, -1):
+        following = torch.where(done[..., t], tail[..., t], following)
+        following = rewards[..., t] + gamma * following
+        returns[..., t] = following
+    return returns
+
+
+def calibration_stats(
+    predicted: torch.Tensor,
+    realised: torch.Tensor,
+    v_min: float,
+    v_max: float,
+    eps: float = 0.1,
+) -> dict[str, float]:
+    r"""How well ``predicted`` values match ``realised`` returns (both ``[N]``, one head).
+
+    ``predicted``, ``realised``: their means; ``bias`` = predicted - realised;
+    ``mae`` = :math:`\overline{|\hat Q - G|}`; ``rel_error`` = :math:`|\mathrm{bias}| /
+    \max(|\overline{G}|, \epsilon)` (issue 21's "within 30 %" target reads it; ``eps`` = 0.1, a
+    tenth of the task's +1, keeps a return near 0 from making it explode); ``outside_support``:
+    the fraction of realised returns outside the head's support ``[v_min, v_max]``, which the
+    critic cannot represent. Example: predicted ``[0, 0]``, realised ``[-4, -16]`` on [-10, 0] ->
+    bias 10, rel_error 1.0, outside_support 0.5.
+    """
+    if predicted.shape != realised.shape or predicted.ndim != 1 or predicted.numel() == 0:
+        raise ValueError(
+            f"predicted and realised must be equal non-empty [N], got {tuple(predicted.shape)} "
+            f"and {tuple(realised.shape)}"
+        )
+    p, g = predicted.double(), realised.double()
+    bias = float(p.mean() - g.mean())
+    return {
+        "predicted": float(p.mean()),
+        "realised": float(g.mean()),
+        "bias": bias,
+        "mae": float((p - g).abs().mean()),
+        "rel_error": abs(bias) / max(abs(float(g.mean())), eps),
+        "outside_support": float(((g < v_min) | (g > v_max)).double().mean()),
+    }
+
+
+@torch.no_grad()
+def critic_values(
+    loss: MultiHeadD4PGLoss, td: TensorDictBase, act: bool = False
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``([N, K] expected values, [K, num_atoms] atoms)`` of the online critic on ``td``'s
+    ``observation`` and ``action`` (with ``act``: the online actor's action, no noise)."""
+    td = td.select(*loss.actor_in_keys, *loss.value_in_keys, strict=False).clone(False)
+    if act:
+        td = loss.actor_network(td)
+    with loss.value_network_params.to_module(loss.value_network):
+        out = loss.value_network(td)
+    logits = out.get(loss.tensor_keys.value_logits)
+    atoms = out.get(loss.tensor_keys.value_atoms)
+    return expected_value(logits, atoms), atoms.reshape(-1, *atoms.shape[-2:])[0]
+
+
+@torch.no_grad()
+def measure_calibration(
+    loss: MultiHeadD4PGLoss,
+    transform: Transform,
+    episodes: Sequence[TensorDictBase],
+    gamma: float,
+    eps: float = 0.1,
+) -> dict[str, dict[str, dict[str, float]]]:
+    """Per head, :func:`calibration_stats` over every step and over the episodes' first steps.
+
+    Args:
+        loss: the run's D4PG loss (online critic and actor, ``episodic`` flags, reward keys).
+        transform: writes the reward components under ``"next"`` (the run's
+            :class:`~gentlerl.agent.IntrinsicRewards` ``transform``, models and gate as they are).
+        episodes: ``[T_i]`` rollouts ending at their first ``done`` or cut by a step limit (as
+            :func:`~gentlerl.training.evaluation.rollout_episodes` returns them); not modified.
+        gamma: the learner's discount.
+
+    Returns ``{head: {"all": stats, "start": stats}}``.
+    """
+    if not episodes:
+        raise ValueError("need at least one episode to measure calibration, got none")
+    lengths = torch.tensor([e.shape[0] for e in episodes])
+    steps = transform(
+        torch.cat([e.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)) for e in episodes], 0)
+    )
+    ends = lengths.cumsum(0) - 1
+    done = torch.zeros(steps.shape[0], dtype=torch.bool)
+    done[ends] = True
+    heads = loss.reward_keys
+    rewards = torch.stack([steps.get(("next", k)).reshape(-1) for k in heads])  # [K, N]
+    predicted, atoms = critic_values(loss, steps)
+    bootstrap = torch.zeros_like(rewards)
+    bootstrap[:, ends] = critic_values(loss, steps[ends].get("next"), act=True)[0].T
+    terminated = steps.get(("next", keys.TERMINATED)).reshape(-1).bool()
+    cut = terminated & loss.episodic.reshape(-1, 1)  # [K, N]: non-episodic heads bootstrap
+    realised = discounted_returns(rewards, done, bootstrap, gamma, cut)
+    start = torch.cat([ends.new_zeros(1), ends[:-1] + 1])
+    report = {}
+    for k, head in enumerate(heads):
+        name = head if isinstance(head, str) else "_".join(head)
+        v_min, v_max = float(atoms[k, 0]), float(atoms[k, -1])
+        p, g = predicted[:, k], realised[k]
+        report[name] = {
+            "all": calibration_stats(p, g, v_min, v_max, eps),
+            "start": calibration_stats(p[start], g[start], v_min, v_max, eps),
+        }
+    return report
+
+
+def calibration_scalars(report: dict[str, dict[str, dict[str, float]]]) -> dict[str, float]:
+    """``calibration/<head>/{predicted,realised,bias}`` over every step of a
+    :func:`measure_calibration` report, for a run's logs."""
+    return {
+        f"calibration/{head}/{stat}": where["all"][stat]
+        for head, where in report.items()
+        for stat in ("predicted", "realised", "bias")
+    }
