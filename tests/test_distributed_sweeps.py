@@ -89,8 +89,7 @@ def test_grid_points_run_as_tasks_done_skipped_checkpoint_resumed_failure_counte
     assert counts == {"skipped": 1, "done": 1, "failed": 2, "planned": 0}
     logs = {r.run_dir.name: (r.run_dir / "stdout.log") for r in runs}
     resumed = logs["variant-r_seed-0"].read_text()
-    assert "variant=r seed=0 total_frames=300 resume=true run_dir=" in resumed
-    assert "resume=true" not in logs["variant-r+rf_seed-1"].read_text()
+    assert "variant=r seed=0 total_frames=300 resume=auto run_dir=" in resumed
     assert "seed 1 fails" in logs["variant-r_seed-1"].read_text()
     assert not logs["variant-r+rf_seed-0"].exists()  # DONE: never started
     # Second pass: only the two failed runs are tried again.

@@ -3,6 +3,10 @@ must not be, and safety checks that fail closed."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -257,3 +261,128 @@ def test_an_implausible_block_force_is_refused(driver_env):
     env = driver_env(_StallingDriver(99, block=-50.0), calibration=_linear_calibration()[0])
     with pytest.raises(ValueError, match="'block_force'=-50.0 N is implausible"):
         env.reset()
+
+
+# --- a policy file cannot demand an allocation; its sizes must match its weights -------------
+
+
+def _policy_file(tmp_path: Path, hidden: list[int], weights_hidden: list[int]) -> Path:
+    from gentlerl.models import make_actor
+    from gentlerl.training.checkpoint import save_checkpoint
+    from gentlerl.training.config import preset_config
+
+    config = preset_config(network={"actor_hidden": hidden}).to_dict()
+    actor = make_actor(10, 20, weights_hidden)
+    path = tmp_path / "policy.pt"
+    state = {"config": config, "obs_dim": 10, "action_dim": 20, "actor": actor.state_dict()}
+    save_checkpoint(path, state)
+    return path
+
+
+def test_a_policy_demanding_a_huge_actor_is_refused_before_allocating(tmp_path):
+    from gentlerl.training.checkpoint import CheckpointError, load_policy
+
+    path = _policy_file(tmp_path, [200000, 200000], [16])
+    with pytest.raises(CheckpointError, match=r"do not match its config .*actor_hidden=\[200000"):
+        load_policy(path)
+
+
+def test_a_policy_whose_config_and_weights_disagree_is_one_line(tmp_path):
+    from gentlerl.training.checkpoint import CheckpointError, load_policy
+
+    with pytest.raises(CheckpointError) as err:
+        load_policy(_policy_file(tmp_path, [32], [16]))
+    assert "\n" not in str(err.value) and "policy.pt" in str(err.value)
+    assert len(load_policy(_policy_file(tmp_path, [16], [16]))) == 2
+
+
+# --- one writer per run directory; faults leave the run resumable -----------------------------
+
+
+def test_a_run_directory_has_one_writer(tmp_path):
+    from gentlerl.training.run_lock import RunLock, RunLockedError
+
+    run_dir = tmp_path / "run"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_LOCK, str(run_dir)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(RunLockedError, match=f"in use by pid {holder.pid} on ") as err:
+            RunLock(run_dir).acquire()
+        assert "\n" not in str(err.value)
+    finally:
+        holder.kill()
+        holder.wait()
+    # The holder was killed: its lock is stale and taken over.
+    assert (run_dir / ".lock").read_text().startswith(f"pid {holder.pid}")
+    with RunLock(run_dir):
+        assert (run_dir / ".lock").read_text().startswith(f"pid {os.getpid()}")
+    assert not run_dir.exists() or not (run_dir / ".lock").exists()
+
+
+HOLD_LOCK = """
+import sys, time
+from gentlerl.training.run_lock import RunLock
+lock = RunLock(sys.argv[1]).acquire()
+print("locked", flush=True)
+time.sleep(60)
+"""
+
+
+def test_train_refuses_a_locked_run_dir_before_writing(tmp_path):
+    from gentlerl.training.config import make_config
+    from gentlerl.training.loop import train
+    from gentlerl.training.run_lock import RunLock, RunLockedError
+
+    run_dir = tmp_path / "run"
+    with RunLock(run_dir):
+        before = _files(tmp_path)
+        with pytest.raises(RunLockedError, match="is in use by"):
+            train(make_config(run_dir=str(run_dir), resume="auto"))
+        assert _files(tmp_path) == before
+
+
+def test_a_refused_run_leaves_no_empty_run_dir(tmp_path):
+    from gentlerl.training.config import make_config
+    from gentlerl.training.loop import train
+
+    run_dir = tmp_path / "run"
+    with pytest.raises(ValueError, match="resume=true but there is no checkpoint"):
+        train(make_config(run_dir=str(run_dir), resume=True))
+    assert not run_dir.exists()
+
+
+def test_disk_full_says_so_and_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
+    from gentlerl.training import checkpoint
+
+    path = tmp_path / "checkpoint.pt"
+    checkpoint.save_checkpoint(path, {"frames": torch.tensor(1)})
+
+    def full(*args, **kwargs):
+        raise RuntimeError("[enforce fail at inline_container.cc:672] . unexpected pos 64 vs 0")
+
+    monkeypatch.setattr(checkpoint.torch, "save", full)
+    monkeypatch.setattr(
+        checkpoint.shutil, "disk_usage", lambda p: shutil._ntuple_diskusage(1, 1, 0)
+    )
+    with pytest.raises(OSError, match="no space left on device writing .* is intact"):
+        checkpoint.save_checkpoint(path, {"frames": torch.tensor(2)})
+    monkeypatch.undo()
+    assert int(checkpoint.load_checkpoint(path)["frames"]) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.pt"]
+
+
+def test_a_ray_run_without_a_cluster_writes_nothing(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    from gentlerl.distributed import ClusterError
+    from gentlerl.training.config import make_config
+    from gentlerl.training.loop import train
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    cfg = make_config(
+        run_dir=str(tmp_path / "run"), collector={"kind": "ray", "ray_address": "auto"}
+    )
+    with pytest.raises(ClusterError, match="no Ray cluster found"):
+        train(cfg)
+    assert list(tmp_path.iterdir()) == []

@@ -64,10 +64,10 @@ def test_finished_runs_are_skipped_and_checkpointed_ones_resumed(tmp_path, monke
     (runs[1].run_dir).mkdir(parents=True)
     (runs[1].run_dir / "checkpoint.pt").write_bytes(b"x")
     calls = []
-    monkeypatch.setattr("gentlerl.sweeps.subprocess.call", lambda cmd, **kw: calls.append(cmd) or 0)
+    monkeypatch.setattr("gentlerl.sweeps._call", lambda cmd, log: calls.append(cmd) or 0)
     counts = run_grid(runs, workers=2)
     assert counts == {"skipped": 1, "done": 1, "failed": 0, "planned": 0}
-    assert len(calls) == 1 and "resume=true" in calls[0] and "variant=r+rf+rsp" in calls[0]
+    assert len(calls) == 1 and "resume=auto" in calls[0] and "variant=r+rf+rsp" in calls[0]
 
 
 def test_a_real_tiny_grid_runs_the_recipe_and_then_skips_it(tmp_path):

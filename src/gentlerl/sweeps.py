@@ -16,13 +16,15 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
+import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from gentlerl.cli import command_parser
 from gentlerl.sweep_files import check_set, load_sweep
@@ -107,12 +109,19 @@ def restrict(grid: dict[str, list[Any]], only: Sequence[str]) -> dict[str, list[
 def run_grid(
     runs: Sequence[GridRun], workers: int = 1, extra: Sequence[str] = (), dry_run: bool = False
 ) -> dict[str, int]:
-    """Run (or, ``dry_run``, print) the grid; counts ``done``/``skipped``/``failed``/``planned``."""
+    """Run (or, ``dry_run``, print) the grid; counts ``done``/``skipped``/``failed``/``planned``.
+
+    Interrupted (Ctrl-C, ``SIGTERM`` through :func:`main`), it kills the process group of every
+    trainer still running, so no orphaned trainer keeps writing its run directory."""
     todo = pending(runs)
     counts = {"skipped": len(runs) - len(todo), "done": 0, "failed": 0, "planned": 0}
     with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
-        for code in pool.map(lambda run: run_point(run, extra, dry_run), todo):
-            counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
+        try:
+            for code in pool.map(lambda run: run_point(run, extra, dry_run), todo):
+                counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
+        except BaseException:
+            stop_trainers()
+            raise
     return counts
 
 
@@ -122,19 +131,80 @@ def pending(runs: Sequence[GridRun]) -> list[GridRun]:
 
 
 def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) -> int:
-    """Run one grid point (``resume=true`` if it has a checkpoint); the recipe's exit code.
+    """Run one grid point with ``resume=auto`` (continued from its checkpoint, or started again
+    when it was interrupted before its first one); the recipe's exit code.
 
-    Output goes to ``run_dir/stdout.log``. The Ray backend calls this on the worker node.
+    Output goes to ``run_dir/stdout.log``; a failure's last line is printed here too. The Ray
+    backend calls this on the worker node.
     """
-    resume = ["resume=true"] if (run.run_dir / "checkpoint.pt").exists() else []
-    command = run.command([*extra, *resume])
+    command = run.command([*extra, "resume=auto"])
     print(" ".join(command), flush=True)
     if dry_run:
         return 0
     run.run_dir.mkdir(parents=True, exist_ok=True)
-    with (run.run_dir / "stdout.log").open("a") as log:
-        # subprocess.call kills the recipe when interrupted (Ctrl-C, a cancelled Ray task).
-        return subprocess.call(command, stdout=log, stderr=subprocess.STDOUT)
+    log_path = run.run_dir / "stdout.log"
+    with log_path.open("a") as log:
+        code = _call(command, log)
+    if code != 0:
+        lines = log_path.read_text(errors="replace").strip().splitlines()
+        print(f"{run.run_dir}: exit {code}: {lines[-1] if lines else ''}", file=sys.stderr)
+    return code
+
+
+#: Trainers running now (their process groups are killed when the sweep is interrupted).
+_LIVE: set[subprocess.Popen] = set()
+_LIVE_LOCK = threading.Lock()
+
+
+def _call(command: list[str], log: IO[str]) -> int:
+    """Run ``command`` in its own process group (its collector workers with it); the group is
+    killed if this call is interrupted (Ctrl-C, a cancelled Ray task)."""
+    proc = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    with _LIVE_LOCK:
+        _LIVE.add(proc)
+    try:
+        return proc.wait()
+    except BaseException:
+        _kill_group(proc)
+        raise
+    finally:
+        with _LIVE_LOCK:
+            _LIVE.discard(proc)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=30)
+    except ProcessLookupError:
+        pass
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+
+
+def stop_trainers() -> None:
+    """Kill the process group of every trainer this sweep still runs."""
+    with _LIVE_LOCK:
+        live = list(_LIVE)
+    for proc in live:
+        _kill_group(proc)
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)  # unwinds through run_grid, which stops the trainers
+
+
+def _run(args: argparse.Namespace, runs: list[GridRun], extra: list[str]) -> dict[str, int]:
+    if args.backend == "ray" and not args.dry_run:
+        from gentlerl.distributed.cluster import ClusterError
+        from gentlerl.distributed.sweeps import run_grid_on_ray
+
+        cpus = max(1, round(args.workers * args.cpus_per_run))
+        try:
+            return run_grid_on_ray(runs, extra, args.address, args.cpus_per_run, cpus)
+        except ClusterError as err:
+            raise SystemExit(str(err)) from None
+    return run_grid(runs, args.workers, extra, args.dry_run)
 
 
 def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
@@ -185,17 +255,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     except (ValueError, OSError) as err:
         raise SystemExit(f"{prog}: {err}") from None
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
-    if args.backend == "ray" and not args.dry_run:
-        from gentlerl.distributed.cluster import ClusterError
-        from gentlerl.distributed.sweeps import run_grid_on_ray
-
-        cpus = max(1, round(args.workers * args.cpus_per_run))
-        try:
-            counts = run_grid_on_ray(runs, extra, args.address, args.cpus_per_run, cpus)
-        except ClusterError as err:
-            raise SystemExit(str(err)) from None
-    else:
-        counts = run_grid(runs, args.workers, extra, args.dry_run)
+    handlers = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        counts = _run(args, runs, extra)
+    finally:
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
     print(f"{len(runs)} runs: {counts}")
     if args.figures and not args.dry_run:
         from gentlerl.figures import main as plot

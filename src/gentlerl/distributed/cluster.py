@@ -67,6 +67,20 @@ def preflight(address: str | None) -> ModuleType:
     return ray
 
 
+def join_cluster(address: str | None) -> None:
+    """Before a run writes anything: ``preflight``, then, for a cluster ``address`` (not None),
+    ``ray.init`` on it now, so an address that answers TCP but holds no Ray (or ``"auto"`` with
+    none started) fails before the run directory is touched. The collector reuses this
+    connection; a local Ray (``None``) is left for the collector to start and stop."""
+    ray = preflight(address)
+    if address is None or ray.is_initialized():
+        return
+    try:
+        ray.init(**ray_init_config(address))
+    except ConnectionError as err:
+        raise no_cluster(address, err) from err
+
+
 def no_cluster(address: str | None, err: Exception) -> ClusterError:
     """The error for ``ray.init`` finding no cluster (``address="auto"`` with none running)."""
     return ClusterError(

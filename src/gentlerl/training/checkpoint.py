@@ -9,7 +9,9 @@ RNG state) are written as tagged plain dicts and rebuilt on load.
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -91,9 +93,25 @@ def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(err, RuntimeError | OSError) and _out_of_space(err, path.parent):
+            kept = f"{path} is intact" if path.exists() else f"no {path.name} was written"
+            raise OSError(
+                errno.ENOSPC, f"no space left on device writing {path} ({kept}); free some space"
+            ) from None
         raise
+
+
+def _out_of_space(err: BaseException, folder: Path) -> bool:
+    """Whether a failed save ran out of disk: ``ENOSPC``, or torch's zip writer failing
+    (``[enforce fail at inline_container.cc]``, "file write failed") with under 64 MiB free."""
+    if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+        return True
+    message = str(err)
+    if "inline_container" not in message and "write failed" not in message:
+        return False
+    return shutil.disk_usage(folder).free < 64 * 2**20
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -156,10 +174,43 @@ def policy_from_state(
     missing = [k for k in POLICY_KEYS if k not in state]
     if missing:
         raise CheckpointError(f"{path} is not a gentlerl policy file: it lacks {missing}")
-    cfg = make_config(**group_flat_config(state["config"]))
-    actor = make_actor(state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
+    if not isinstance(state["config"], dict):
+        raise CheckpointError(f"{path}: its config is a {type(state['config']).__name__}")
+    try:
+        cfg = make_config(**group_flat_config(state["config"]))
+    except (ValueError, TypeError) as err:
+        reason = "; ".join(line.strip(" -") for line in str(err).splitlines()[1:]) or str(err)
+        raise CheckpointError(f"{path}: its config is invalid: {reason}") from None
+    sizes = (state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
+    _check_actor_weights(state["actor"], sizes, path)
+    actor = make_actor(*sizes)
     actor.load_state_dict(state["actor"])
     return cfg, actor.eval()
+
+
+def _check_actor_weights(weights: Any, sizes: tuple, path: str | os.PathLike) -> None:
+    """Refuse weights whose names or shapes are not those of the actor the file's sizes describe,
+    before that actor is built: the sizes are checked on the ``meta`` device, which allocates
+    nothing, so a file cannot demand a huge allocation (``actor_hidden=[200000, 200000]``)."""
+    obs_dim, action_dim, hidden = sizes
+    for name, value in (("obs_dim", obs_dim), ("action_dim", action_dim)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise CheckpointError(f"{path}: {name}={value!r} must be an integer >= 1")
+    if not isinstance(weights, dict) or not all(
+        isinstance(v, torch.Tensor) for v in weights.values()
+    ):
+        raise CheckpointError(f"{path}: its actor is not a mapping of weight tensors")
+    with torch.device("meta"):
+        expected = {k: tuple(v.shape) for k, v in make_actor(*sizes).state_dict().items()}
+    found = {k: tuple(v.shape) for k, v in weights.items()}
+    if found != expected:
+        diff = sorted(set(expected) ^ set(found)) or [
+            f"{k} {found[k]} (expected {expected[k]})" for k in expected if found[k] != expected[k]
+        ]
+        raise CheckpointError(
+            f"{path}: its actor weights do not match its config (obs_dim={obs_dim}, "
+            f"action_dim={action_dim}, network.actor_hidden={list(hidden)}): {diff[0]}"
+        )
 
 
 def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:

@@ -75,8 +75,10 @@ def consistency_problems(cfg: Any) -> list[str]:
     from gentlerl.envs.factory import TASKS, env_kwarg_names
 
     problems = []
-    if cfg.seed < 0:
-        problems.append(f"seed={cfg.seed} must be >= 0")
+    if not 0 <= cfg.seed < 2**32:
+        problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
+    if not cfg.run_dir.strip():
+        problems.append(f"run_dir={cfg.run_dir!r} must name a directory (empty: the working one)")
     replay = cfg.replay
     if replay.buffer_size < replay.batch_size:
         problems.append(

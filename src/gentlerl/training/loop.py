@@ -41,6 +41,7 @@ from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import calibration_scalars, measure_calibration
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger
+from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
 
 CHECKPOINT = "checkpoint.pt"
@@ -62,9 +63,9 @@ class Trainer:
         torch.set_num_threads(cfg.num_threads)
         seed_everything(cfg.seed)
         if cfg.collector.kind == "ray":  # Ray installed, cluster reachable: before writing
-            from gentlerl.distributed.cluster import preflight
+            from gentlerl.distributed.cluster import join_cluster
 
-            preflight(cfg.collector.ray_address)
+            join_cluster(cfg.collector.ray_address)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = self.env_factory()
@@ -301,4 +302,6 @@ def train(cfg: TrainConfig, env_factory: EnvFactory | None = None) -> dict[str, 
     ``env_factory`` builds the env (default: :func:`gentlerl.envs.make_env` for ``cfg.task``); it
     must write ``observation``, ``success`` and ``broken`` and the force key of ``ImpactPenalty``.
     """
-    return Trainer(cfg, env_factory).run()
+    validate(cfg)  # before the lock: a refused config creates nothing
+    with RunLock(cfg.run_dir):  # one writer per run directory
+        return Trainer(cfg, env_factory).run()

@@ -1,0 +1,83 @@
+"""One writer per run directory: ``run_dir/.lock``, held with ``flock`` for the life of a run.
+
+Two ``gentlerl train ... resume=auto`` on one run directory would both append to its CSV files
+and overwrite each other's checkpoints. The lock file names its holder (pid and host) so the
+second one is refused in one line saying who holds it. ``flock`` is released by the kernel when
+the holder dies, so a lock left by a killed run is stale and the next run takes it over.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import socket
+from pathlib import Path
+
+LOCK_FILE = ".lock"
+
+
+class RunLockedError(RuntimeError):
+    """The run directory is held by another live process; the message names it."""
+
+
+class RunLock:
+    """Hold ``run_dir/.lock`` (``with RunLock(run_dir): ...``); creates ``run_dir`` (and removes
+    it on release if it is still empty).
+
+    Raises:
+        RunLockedError: another live process holds it.
+    """
+
+    def __init__(self, run_dir: str | os.PathLike) -> None:
+        self.path = Path(run_dir) / LOCK_FILE
+        self._fd: int | None = None
+        self._made_dir = False
+
+    def acquire(self) -> RunLock:
+        self._made_dir = not self.path.parent.exists()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        for _ in range(10):  # the file may be removed by its holder between open and flock
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+                os.close(fd)
+                self._remove_empty_dir()
+                raise RunLockedError(
+                    f"run_dir={str(self.path.parent)!r} is in use by {holder} (lock {self.path}); "
+                    "wait for that run to end or stop it, or choose another run_dir"
+                ) from None
+            if _same_file(fd, self.path):
+                os.ftruncate(fd, 0)
+                os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode())
+                self._fd = fd
+                return self
+            os.close(fd)
+        raise RunLockedError(f"could not take the lock {self.path}: it keeps changing")
+
+    def release(self) -> None:
+        if self._fd is not None:
+            self.path.unlink(missing_ok=True)
+            os.close(self._fd)
+            self._fd = None
+            self._remove_empty_dir()
+
+    def _remove_empty_dir(self) -> None:
+        """A run refused before writing anything leaves no empty directory it made behind."""
+        if self._made_dir and not any(self.path.parent.iterdir()):
+            self.path.parent.rmdir()
+
+    def __enter__(self) -> RunLock:
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the file open at ``fd`` (not unlinked by its last holder)."""
+    try:
+        return os.stat(path).st_ino == os.fstat(fd).st_ino
+    except FileNotFoundError:
+        return False
