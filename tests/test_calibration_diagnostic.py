@@ -131,6 +131,7 @@ def test_truncated_episodes_are_bootstrapped_with_the_critics_own_value():
             assert s["realised"] == pytest.approx(q * float(factor), abs=1e-5)
             assert s["bias"] == pytest.approx(q * (1 - float(factor)), abs=1e-5)
             assert s["outside_support"] == 0.0
+            assert s["bootstrap"] == pytest.approx(s["realised"], abs=1e-5)  # no reward at all
     # mean of gamma^1..gamma^10 = 0.9 (1 - 0.9^10) / (10 * 0.1) = 0.58619
     assert report["reward"]["all"]["realised"] == pytest.approx(2 * 0.586189, abs=1e-5)
     scalars = calibration_scalars(report)
@@ -149,10 +150,11 @@ def test_termination_cuts_episodic_heads_and_not_the_others():
     kept = measure_calibration(through, ImpactPenalty(), episodes, GAMMA)
     # Task reward +1 at the terminal step, no bootstrap: G_t = 0.9^(7 - t), G_0 = 0.4783.
     assert cut["reward"]["start"]["realised"] == pytest.approx(GAMMA**7, abs=1e-6)
-    assert kept["reward"] == cut["reward"]
+    assert kept["reward"] == cut["reward"] and cut["reward"]["all"]["bootstrap"] == 0.0
     # The non-episodic penalty head adds gamma^(8 - t) * Q(s_8) = gamma^(8 - t) * (-5).
     extra = kept["penalty"]["start"]["realised"] - cut["penalty"]["start"]["realised"]
     assert extra == pytest.approx(-5.0 * GAMMA**8, abs=1e-5)
+    assert kept["penalty"]["start"]["bootstrap"] == pytest.approx(-5.0 * GAMMA**8, abs=1e-5)
     mean_extra = -5.0 * sum(GAMMA ** (8 - t) for t in range(8)) / 8
     assert kept["penalty"]["all"]["realised"] - cut["penalty"]["all"]["realised"] == pytest.approx(
         mean_extra, abs=1e-5

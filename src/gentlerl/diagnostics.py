@@ -4,7 +4,12 @@ Loads a run's full ``checkpoint.pt`` (actor, critics, reward models and whether 
 rewards are on), rolls its actor out on the run's task, deterministically and with the run's
 exploration noise (``collector.sigma``), and prints per critic head the mean predicted Q against
 the mean realised discounted return (:mod:`gentlerl.training.critic_calibration`), over every
-step and at episode start, with the fraction of realised returns outside the head's support.
+step and at episode start.
+
+Columns: ``predicted`` and ``realised`` means, ``bias`` = predicted - realised, ``mae`` the mean
+absolute error per step, ``rel_err`` = |bias| / max(|realised|, 0.1), ``outside`` the fraction of
+realised returns outside the head's support, ``boot`` the part of the realised mean that is the
+critic's own bootstrap (truncation; termination too for non-episodic heads).
 """
 
 from __future__ import annotations
@@ -128,7 +133,7 @@ def format_table(report: dict[str, Any]) -> str:
         f"{'on' if report['intrinsic_on'] else 'off'}; {report['episodes']} episodes per mode "
         f"(seed {report['seed']})",
         f"{'head':<18} {'mode':<13} {'where':<5} {'predicted':>9} {'realised':>9} {'bias':>9} "
-        f"{'mae':>8} {'rel_err':>8} {'outside':>7}",
+        f"{'mae':>8} {'rel_err':>8} {'outside':>7} {'boot':>8}",
     ]
     for mode, heads in report["modes"].items():
         for head, where in heads.items():
@@ -136,7 +141,7 @@ def format_table(report: dict[str, Any]) -> str:
                 lines.append(
                     f"{head:<18} {mode:<13} {at:<5} {s['predicted']:>9.3f} {s['realised']:>9.3f} "
                     f"{s['bias']:>+9.3f} {s['mae']:>8.3f} {s['rel_error']:>8.2f} "
-                    f"{s['outside_support']:>7.2f}"
+                    f"{s['outside_support']:>7.2f} {s['bootstrap']:>8.3f}"
                 )
     return "\n".join(lines)
 

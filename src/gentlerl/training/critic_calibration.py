@@ -25,11 +25,6 @@ from torchrl.envs.transforms import Transform
 from gentlerl import keys
 from gentlerl.objectives import MultiHeadD4PGLoss
 
-#: The statistics of :func:`calibration_stats`, in table order.
-STATS = ("predicted", "realised", "bias", "mae", "rel_error", "outside_support")
-#: Where they are taken: every step, or the first step of each episode.
-WHERE = ("all", "start")
-
 
 def expected_value(logits: torch.Tensor, atoms: torch.Tensor) -> torch.Tensor:
     r"""Expected value of categorical distributions: :math:`Q = \sum_j \mathrm{softmax}(l)_j z_j`.
@@ -156,7 +151,10 @@ def measure_calibration(
             :func:`~gentlerl.training.evaluation.rollout_episodes` returns them); not modified.
         gamma: the learner's discount.
 
-    Returns ``{head: {"all": stats, "start": stats}}``.
+    Returns ``{head: {"all": stats, "start": stats}}``: :func:`calibration_stats` and
+    ``bootstrap``, the mean part of the realised return that is the critic's own value at the
+    episodes' last next-states (discounted): where it dominates (short episodes of a
+    non-episodic head), the comparison checks self-consistency more than ground truth.
     """
     if not episodes:
         raise ValueError("need at least one episode to measure calibration, got none")
@@ -175,15 +173,18 @@ def measure_calibration(
     terminated = steps.get(("next", keys.TERMINATED)).reshape(-1).bool()
     cut = terminated & loss.episodic.reshape(-1, 1)  # [K, N]: non-episodic heads bootstrap
     realised = discounted_returns(rewards, done, bootstrap, gamma, cut)
+    # The part of G_t that is the critic's own bootstrap: the returns of zero rewards.
+    borrowed = discounted_returns(torch.zeros_like(rewards), done, bootstrap, gamma, cut)
     start = torch.cat([ends.new_zeros(1), ends[:-1] + 1])
     report = {}
     for k, head in enumerate(heads):
         name = head if isinstance(head, str) else "_".join(head)
         v_min, v_max = float(atoms[k, 0]), float(atoms[k, -1])
-        p, g = predicted[:, k], realised[k]
+        p, g, b = predicted[:, k], realised[k], borrowed[k].double()
         report[name] = {
-            "all": calibration_stats(p, g, v_min, v_max, eps),
-            "start": calibration_stats(p[start], g[start], v_min, v_max, eps),
+            "all": calibration_stats(p, g, v_min, v_max, eps) | {"bootstrap": float(b.mean())},
+            "start": calibration_stats(p[start], g[start], v_min, v_max, eps)
+            | {"bootstrap": float(b[start].mean())},
         }
     return report
 
