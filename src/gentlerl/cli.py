@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -57,16 +58,56 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Set (to anything but "" or "0") to see the traceback of a refusal or crash.
+DEBUG_ENV = "GENTLERL_DEBUG"
+
+
+def debugging() -> bool:
+    """Whether ``GENTLERL_DEBUG`` (or ``--debug``, which sets it) asks for tracebacks."""
+    return os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+def one_line(err: BaseException) -> str:
+    """``err`` as one line: its message's lines joined (a bad input's own message), prefixed by
+    its type unless it is a refusal of bad input (``ValueError``, ``OSError``, ``TimeoutError``),
+    and for anything else a hint to rerun with ``GENTLERL_DEBUG=1``."""
+    message = ""
+    for line in (line.strip() for line in str(err).splitlines() if line.strip()):
+        sep = "" if not message else " " if message.endswith(":") else "; "
+        message += sep + line.removeprefix("- ")
+    if isinstance(err, ValueError | OSError | TimeoutError):
+        return message or type(err).__name__
+    return f"{type(err).__name__}: {message} ({DEBUG_ENV}=1 shows the traceback)"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``gentlerl`` console script; returns the exit status."""
+    """Entry point of the ``gentlerl`` console script; returns the exit status.
+
+    A command that fails prints one line on stderr and exits 1 (130 on Ctrl-C); ``--debug``
+    anywhere on the command line (or ``GENTLERL_DEBUG=1``) shows the traceback instead.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
+    if "--debug" in argv:
+        argv.remove("--debug")
+        os.environ[DEBUG_ENV] = "1"
     args, rest = build_parser().parse_known_args(argv[:1])
     rest += argv[1:]
     module, _ = COMMANDS[args.command]
-    if module is None:
-        run_train(rest)
-        return 0
-    status = importlib.import_module(module).main(rest, prog=f"gentlerl {args.command}")
+    try:
+        if module is None:
+            run_train(rest)
+            return 0
+        status = importlib.import_module(module).main(rest, prog=f"gentlerl {args.command}")
+    except KeyboardInterrupt:
+        if debugging():
+            raise
+        print(f"gentlerl {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as err:  # noqa: BLE001 - every failure of a command is one line
+        if debugging():
+            raise
+        print(f"gentlerl {args.command}: error: {one_line(err)}", file=sys.stderr)
+        return 1
     return status if isinstance(status, int) else 0  # some mains return their results
 
 

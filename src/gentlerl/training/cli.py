@@ -12,6 +12,7 @@ The config lives in the package (hydra's ``ConfigStore``): the schema is
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -114,18 +115,39 @@ def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
 def _app(cfg: DictConfig) -> dict[str, float]:
     from hydra.core.hydra_config import HydraConfig
 
+    from gentlerl.cli import debugging, one_line
     from gentlerl.distributed import ClusterError
 
     try:
         summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
         raise SystemExit(str(err)) from None
+    except Exception as err:  # noqa: BLE001 - a refusal is one line; GENTLERL_DEBUG=1: traceback
+        if debugging():
+            raise
+        raise SystemExit(f"gentlerl train: error: {one_line(err)}") from None
     print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
     return summary
 
 
+def unknown_fields(overrides: list[str]) -> list[str]:
+    """The keys of plain ``key=value`` overrides that name no config field (hydra's own
+    ``hydra.*``, ``+`` / ``~`` / ``++`` overrides and flags are left to hydra)."""
+    valid = {name for name, _ in iter_fields()}
+    keys = [
+        a.partition("=")[0] for a in overrides if "=" in a and not a.startswith(("-", "+", "~"))
+    ]
+    return [k for k in keys if k not in valid and not k.startswith("hydra.") and k != "hydra"]
+
+
 def main() -> None:
     """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides."""
+    unknown = unknown_fields(sys.argv[1:])
+    if unknown:
+        raise SystemExit(
+            f"gentlerl train: error: unknown config field(s) {unknown}: `gentlerl train --help` "
+            "lists them (a task keyword goes in as +env.kwargs.NAME=VALUE)"
+        )
     register_configs()
     _app()
 
