@@ -199,6 +199,10 @@ def test_calibration_command_prints_every_head_and_mode(hand_run, tmp_path, caps
     assert json.loads(out.read_text()) == json.loads(json.dumps(report))
     assert report["frames"] == 300 and report["intrinsic_on"] is True
     assert report["variant"] == "r+rf+rsp" and report["gamma"] == 0.99
+    assert report["not_saved"] == [] and "warning" not in text
+    # the critic's own supports, one per head (the penalty is never positive)
+    assert list(report["supports"]) == ["reward", "penalty", "penalty_surprise"]
+    assert report["supports"]["penalty"][1] == 0.0
     for mode in ("deterministic", "noisy"):
         assert set(report["modes"][mode]) == {"reward", "penalty", "penalty_surprise"}
         for head in ("reward", "penalty", "penalty_surprise"):
@@ -248,3 +252,18 @@ def test_calibration_command_refuses_a_checkpoint_of_another_agent(hand_run, tmp
     save_checkpoint(tmp_path / "checkpoint.pt", state)
     with pytest.raises(SystemExit, match="does not match this gentlerl's agent"):
         calibration_main([str(tmp_path), "--episodes", "1"])
+
+
+def test_calibration_command_warns_of_config_fields_the_checkpoint_lacks(
+    hand_run, tmp_path, capsys
+):
+    from gentlerl.training.checkpoint import load_checkpoint
+
+    state = load_checkpoint(hand_run / "checkpoint.pt")
+    del state["config"]["network"]["bounded_support"]  # as if saved before the field existed
+    save_checkpoint(tmp_path / "checkpoint.pt", state)
+    report = calibration_main([str(tmp_path), "--episodes", "1"])
+    assert report["not_saved"] == ["network.bounded_support"]
+    assert "warning: the checkpoint predates config fields ['network.bounded_support']" in (
+        capsys.readouterr().out
+    )

@@ -33,9 +33,22 @@ def _checkpoint_path(path: str | os.PathLike) -> Path:
     return path / "checkpoint.pt" if path.is_dir() else path
 
 
-def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, int | None]:
-    """``(config, learner, intrinsic rewards, frames)`` restored from a run's directory or its
-    ``checkpoint.pt``; a ``ValueError`` (one line) for anything else."""
+def fields_not_saved(saved_config: dict[str, Any]) -> list[str]:
+    """The config fields of this gentlerl that a checkpoint's ``saved_config`` lacks: they get
+    today's defaults when it is loaded, which may build other critics than the run trained (the
+    critics' supports come from the config and are not saved with their weights)."""
+    from gentlerl.training.config import group_flat_config, iter_fields
+
+    grouped = group_flat_config(saved_config)
+    saved = {f"{g}.{name}" for g, v in grouped.items() if isinstance(v, dict) for name in v}
+    saved |= {name for name, v in grouped.items() if not isinstance(v, dict)}
+    return sorted({name for name, _ in iter_fields()} - saved)
+
+
+def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
+    """``(config, learner, intrinsic rewards, info)`` restored from a run's directory or its
+    ``checkpoint.pt``; a ``ValueError`` (one line) for anything else. ``info``: ``frames``
+    trained, ``not_saved`` (:func:`fields_not_saved`)."""
     from gentlerl.agent.builder import AgentBuilder
     from gentlerl.envs import make_env
     from gentlerl.training.checkpoint import (
@@ -72,7 +85,8 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, int | None]:
     finally:
         if env is not None:
             env.close()
-    return cfg, learner, rewards, policy_frames(state)
+    info = {"frames": policy_frames(state), "not_saved": fields_not_saved(state["config"])}
+    return cfg, learner, rewards, info
 
 
 def critic_calibration(
@@ -80,7 +94,8 @@ def critic_calibration(
 ) -> dict[str, Any]:
     """Calibration of every critic head of the run at ``path``, per rollout mode (:data:`MODES`):
     ``{"checkpoint", "task", "variant", "frames", "gamma", "sigma", "intrinsic_on", "episodes",
-    "seed", "modes": {mode: {head: {"all" | "start": stats}}}}`` (see
+    "seed", "supports": {head: [v_min, v_max]}, "not_saved": [config fields], "modes": {mode:
+    {head: {"all" | "start": stats}}}}`` (see
     :func:`~gentlerl.training.critic_calibration.measure_calibration`).
 
     Both modes start from the same block placements (the env is seeded with ``seed``).
@@ -93,8 +108,10 @@ def critic_calibration(
 
     if not (isinstance(episodes, int) and episodes >= 1):
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
-    cfg, learner, rewards, frames = load_agent(path)
-    actor = learner.actor
+    cfg, learner, rewards, info = load_agent(path)
+    actor, critic = learner.actor, learner.loss.value_network.module
+    heads = [str(k) for k in learner.loss.reward_keys]
+    bounds = zip(critic.v_min, critic.v_max, strict=True)
     policies = {
         "deterministic": actor,
         "noisy": make_exploration_policy(actor, cfg.collector.sigma),
@@ -104,12 +121,14 @@ def critic_calibration(
         "checkpoint": str(_checkpoint_path(path)),
         "task": cfg.task,
         "variant": cfg.variant,
-        "frames": frames,
+        "frames": info["frames"],
         "gamma": cfg.learner.gamma,
         "sigma": cfg.collector.sigma,
         "intrinsic_on": rewards.intrinsic_on,
         "episodes": episodes,
         "seed": seed,
+        "supports": {h: [lo, hi] for h, (lo, hi) in zip(heads, bounds, strict=True)},
+        "not_saved": info["not_saved"],
         "modes": {},
     }
     try:
@@ -132,6 +151,8 @@ def format_table(report: dict[str, Any]) -> str:
         f"frames, gamma {report['gamma']}, sigma {report['sigma']}, intrinsic "
         f"{'on' if report['intrinsic_on'] else 'off'}; {report['episodes']} episodes per mode "
         f"(seed {report['seed']})",
+        "supports: "
+        + ", ".join(f"{h} [{lo:g}, {hi:g}]" for h, (lo, hi) in report["supports"].items()),
         f"{'head':<18} {'mode':<13} {'where':<5} {'predicted':>9} {'realised':>9} {'bias':>9} "
         f"{'mae':>8} {'rel_err':>8} {'outside':>7} {'boot':>8}",
     ]
@@ -143,6 +164,13 @@ def format_table(report: dict[str, Any]) -> str:
                     f"{s['bias']:>+9.3f} {s['mae']:>8.3f} {s['rel_error']:>8.2f} "
                     f"{s['outside_support']:>7.2f} {s['bootstrap']:>8.3f}"
                 )
+    if report["not_saved"]:
+        lines.insert(
+            1,
+            f"warning: the checkpoint predates config fields {report['not_saved']}; their "
+            "defaults are assumed, so the critics may be read on other supports than they "
+            "trained on",
+        )
     return "\n".join(lines)
 
 
