@@ -386,3 +386,168 @@ def test_a_ray_run_without_a_cluster_writes_nothing(tmp_path, monkeypatch):
     with pytest.raises(ClusterError, match="no Ray cluster found"):
         train(cfg)
     assert list(tmp_path.iterdir()) == []
+
+
+# --- silent acceptances and crashes turned into one-line refusals --------------------------
+
+
+@pytest.mark.parametrize(
+    ("cls", "lam"),
+    [
+        ("ImpactPenalty", (float("nan"), 2.0)),
+        ("ImpactPenalty", (2.0, -5.0)),
+        ("ImpactPenalty", (2.0,)),
+        ("ImpactPenalty", (-1.0, 2.0)),
+        ("ImpactPenalty", "ab"),
+        ("ForcePenalty", (float("nan"), 8.0)),
+        ("ForcePenalty", (2.0, float("inf"))),
+        ("TorquePenalty", (1.0, 2.0, 3.0)),
+    ],
+)
+def test_bad_lambdas_are_refused(cls, lam):
+    import gentlerl.transforms as transforms
+
+    with pytest.raises(ValueError, match=f"{cls} lam must be two finite numbers"):
+        getattr(transforms, cls)(lam=lam)
+
+
+def test_transforms_name_a_missing_next_or_key():
+    from tensordict import TensorDict
+
+    from gentlerl.transforms import ForcePenalty, ImpactPenalty
+
+    with pytest.raises(ValueError, match="needs a transition: a tensordict with a 'next' entry"):
+        ImpactPenalty()(TensorDict({"touch": torch.zeros(5, 3)}))
+    td = TensorDict({"force": torch.zeros(5, 3), "next": {"force": torch.zeros(5, 3)}})
+    for transform in (ImpactPenalty(), ForcePenalty()):
+        with pytest.raises(ValueError, match="reads 'touch', which the tensordict lacks"):
+            transform(td.clone())
+    td = TensorDict({"touch": torch.zeros(5, 3), "next": {"touch": torch.zeros(4, 3)}})
+    with pytest.raises(ValueError, match=r"must be \[..., n_sites, n_channels\] at both steps"):
+        ImpactPenalty()(td)
+
+
+def _fake_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000,0.7\n") -> Path:
+    import yaml
+
+    run = root / f"seed{seed}"
+    config = {"task": "touch", "variant": "r", "seed": seed, "collector": {}, "gentleness": {}}
+    run.mkdir(parents=True)
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    if scalars is not None:
+        (run / "logs" / "scalars" / "eval").mkdir(parents=True)
+        (run / "logs" / "scalars" / "eval" / "success_rate.csv").write_text(scalars)
+    return run
+
+
+@pytest.mark.parametrize(
+    ("file", "content", "match"),
+    [
+        ("logs/scalars/eval/success_rate.csv", "1000,0.5\nnot,a,number\n", "success_rate.csv:2"),
+        ("config.yaml", "task: [unclosed\n", "config.yaml: not valid YAML"),
+        ("config.yaml", "- a list\n", "config.yaml: not a run's config"),
+    ],
+)
+def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content, match):
+    from gentlerl.figures import main as plot
+
+    run = _fake_run(tmp_path / "runs")
+    (run / file).write_text(content)
+    with pytest.raises(ValueError, match=match) as err:
+        plot([str(tmp_path / "runs"), "-o", str(tmp_path / "figs")])
+    assert "\n" not in str(err.value) and not (tmp_path / "figs").exists()
+
+
+def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsys):
+    from gentlerl.figures import main as plot
+
+    _fake_run(tmp_path / "runs", seed=0, scalars=None)
+    with pytest.raises(FileNotFoundError, match="none of the 1 run"):
+        plot([str(tmp_path / "runs"), "-o", str(tmp_path / "figs")])
+    assert not (tmp_path / "figs").exists()
+    _fake_run(tmp_path / "runs", seed=1)
+    plot([str(tmp_path / "runs"), "-o", str(tmp_path / "figs")])
+    assert "skipped 1 run(s) with nothing logged" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        ('{"policy": "x/checkpoint.pt"}\n', "lacks 'success_rate'"),
+        ("not json\n", "is not a JSON object"),
+        ("[1, 2]\n", "is not a JSON object"),
+        (
+            '{"policy": "x/checkpoint.pt", "success_rate": 7}\n',
+            r"success_rate=7.0 is not in \[0, 1\]",
+        ),
+    ],
+)
+def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
+    from gentlerl.claims import main as claims
+
+    evals = tmp_path / "evals" / "sweep"
+    evals.mkdir(parents=True)
+    (evals / "final_eval.jsonl").write_text(content)
+    _fake_run(tmp_path / "runs")
+    with pytest.raises(ValueError, match=f"final_eval.jsonl:1.*{match}"):
+        claims([str(tmp_path / "runs"), "--final-evals", str(tmp_path / "evals")])
+
+
+def test_claims_refuses_a_missing_final_evals_folder(tmp_path):
+    from gentlerl.claims import main as claims
+
+    _fake_run(tmp_path / "runs")
+    for folder in (tmp_path / "nonexistent", tmp_path / "runs"):
+        with pytest.raises(FileNotFoundError, match="--final-evals"):
+            claims([str(tmp_path / "runs"), "--final-evals", str(folder)])
+
+
+def test_export_refuses_unknown_tasks_and_an_empty_export(tmp_path, capsys):
+    from gentlerl.export import main as export
+
+    with pytest.raises(SystemExit):
+        export([str(tmp_path), "--tasks", "bogus"])
+    assert "invalid choice: 'bogus'" in capsys.readouterr().err
+
+
+def test_evaluate_checks_its_csv_and_seed_before_any_episode(tmp_path):
+    from gentlerl.evaluate import evaluate_policy
+
+    missing = tmp_path / "no_policy.pt"  # never reached: the output is checked first
+    (tmp_path / "dir.csv").mkdir()
+    with pytest.raises(IsADirectoryError, match="is a directory"):
+        evaluate_policy(missing, 1, episodes_csv=tmp_path / "dir.csv")
+    with pytest.raises(ValueError, match="must end in .csv"):
+        evaluate_policy(missing, 1, episodes_csv=tmp_path / "out.txt")
+    for seed in (-1, 2**32):
+        with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2\*\*32\)"):
+            evaluate_policy(missing, 1, seed=seed)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.csv"]
+
+
+def test_video_checks_its_output_before_rendering(tmp_path):
+    from gentlerl.video import main as video
+
+    missing = str(tmp_path / "no_policy.pt")
+    (tmp_path / "dir.mp4").mkdir()
+    read_only = tmp_path / "ro"
+    read_only.mkdir(mode=0o555)
+    cases = [("out.avi", ValueError, "must end in .mp4 or .gif"), ("dir.mp4", OSError, "directory")]
+    if os.geteuid() != 0:  # root writes anywhere
+        cases.append(("ro/out.mp4", PermissionError, "not writable"))
+    for out, error, match in cases:
+        with pytest.raises(error, match=match):
+            video([missing, "-o", str(tmp_path / out)])
+    assert not list(tmp_path.rglob("*.tmp*"))
+
+
+def test_an_empty_config_history_does_not_crash_a_resume(tmp_path):
+    from gentlerl.training.guards import CONFIG_HISTORY, record_config_changes
+
+    (tmp_path / CONFIG_HISTORY).write_text("")
+    state = {"counters": {"frames": 10}, "config": {"seed": 0, "logging": {"eval_episodes": 1}}}
+    now = {"seed": 0, "logging": {"eval_episodes": 2}}
+    assert record_config_changes(tmp_path, state, now) == ["logging.eval_episodes"]
+    (tmp_path / CONFIG_HISTORY).write_text("a: mapping\n")
+    with pytest.raises(ValueError, match="must be a YAML list"):
+        record_config_changes(tmp_path, state, now)

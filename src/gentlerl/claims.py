@@ -198,14 +198,35 @@ def _median(values: np.ndarray) -> float:
 
 
 def load_final_evals(folder: Path) -> dict[str, float]:
-    """``{run dir: success_rate}`` from every ``final_eval.jsonl`` under ``folder``."""
+    """``{run dir: success_rate}`` from every ``final_eval.jsonl`` under ``folder``; a missing
+    folder, a folder without one, or a line that is not such a JSON row is an error naming it."""
+    if not folder.is_dir():
+        raise FileNotFoundError(f"--final-evals {folder}: no such directory")
+    paths = sorted(folder.rglob("final_eval.jsonl"))
+    if not paths:
+        raise FileNotFoundError(f"--final-evals {folder}: no final_eval.jsonl under it")
     out = {}
-    for path in sorted(folder.rglob("final_eval.jsonl")):
-        for line in path.read_text().splitlines():
+    for path in paths:
+        for number, line in enumerate(path.read_text().splitlines(), 1):
             if line.strip():
-                row = json.loads(line)
-                out[str(Path(row["policy"]).resolve().parent)] = float(row["success_rate"])
+                out.update([_final_eval(line, f"{path}:{number}")])
     return out
+
+
+def _final_eval(line: str, where: str) -> tuple[str, float]:
+    try:
+        row = json.loads(line)
+        rate = float(row["success_rate"])
+        policy = str(Path(row["policy"]).resolve().parent)
+    except (ValueError, TypeError, KeyError) as err:
+        reason = f"lacks {err}" if isinstance(err, KeyError) else "is not a JSON object"
+        raise ValueError(
+            f"{where} {reason}: expected a `gentlerl evaluate --json` row with policy and "
+            "success_rate"
+        ) from None
+    if not 0.0 <= rate <= 1.0:
+        raise ValueError(f"{where}: success_rate={rate} is not in [0, 1]")
+    return policy, rate
 
 
 def group_by_variant(runs: Sequence[Run]) -> dict[tuple[str, str], list[Run]]:
@@ -283,7 +304,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.clai
         )
     print(table, end="")
     if args.markdown:
-        tmp = args.markdown.with_suffix(".tmp")
+        tmp = args.markdown.with_name(f".{args.markdown.name}.tmp")
         tmp.write_text(table)
         tmp.replace(args.markdown)
 

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from gentlerl.envs import CALIBRATIONS, TASKS, make_env
+from gentlerl.outputs import check_output_file
 
 SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
 
@@ -67,6 +68,10 @@ def evaluate_policy(
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if task is not None and task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise ValueError(f"seed must be an integer in [0, 2**32), got {seed!r}")
+    if episodes_csv is not None:
+        check_output_file(episodes_csv, (".csv",))  # before the episodes, not after
     state = load_checkpoint(path)
     cfg, actor = policy_from_state(state, path)
     env_kwargs = dict(cfg.env.kwargs)

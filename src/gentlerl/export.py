@@ -85,13 +85,19 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.expo
         "--out", default="docs/policies", help="root of <task>/<variant>/seed<k>.pt"
     )
     parser.add_argument(
-        "--tasks", nargs="+", default=["touch", "fragile"], help="export runs of these tasks"
+        "--tasks",
+        nargs="+",
+        default=["touch", "fragile"],
+        choices=list(PRIMARY_LAM2),
+        help="export runs of these tasks",
     )
     parser.add_argument(
         "--all-lambdas", action="store_true", help="also rsp runs at non-primary lambda'_2 values"
     )
     args = parser.parse_args(argv)
     written = export_runs(args.runs, args.out, tasks=args.tasks, all_lambdas=args.all_lambdas)
+    if not written:
+        raise FileNotFoundError(f"no run of tasks {args.tasks} to export under {args.runs}")
     for dest, ckpt in sorted(written.items()):
         print(f"{dest} ({dest.stat().st_size / 1024:.0f} KiB) <- {ckpt}")
     print(f"{len(written)} policies under {args.out}")

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -207,7 +208,14 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl plot") -> None:
     """Write the figures and the summary table of the runs named on the command line."""
     args = build_parser(prog).parse_args(argv)
-    runs = find_runs(resolve_run_paths(args.runs, args.sweeps_out))
+    found = find_runs(resolve_run_paths(args.runs, args.sweeps_out))
+    # A run that logged nothing yet (refused, or interrupted at once) would be a row of nan.
+    runs = [run for run in found if run.scalars]
+    empty = [str(run.path) for run in found if not run.scalars]
+    if empty:
+        print(f"{prog}: skipped {len(empty)} run(s) with nothing logged: {empty}", file=sys.stderr)
+    if not runs:
+        raise FileNotFoundError(f"none of the {len(found)} run(s) found has logged anything")
     out = Path(args.out)
     for path in write_figures(runs, out):
         print(path)

@@ -60,11 +60,20 @@ class Run:
 
 
 def _read_series(path: Path) -> Series:
-    rows = [line.split(",") for line in path.read_text().splitlines() if line.strip()]
-    if not rows:
-        return np.zeros(0), np.zeros(0)
-    data = np.array(rows, dtype=float)
-    return data[:, 0], data[:, 1]
+    """``(frames, values)`` of a scalar CSV (``frame,value`` lines); a line that is not two
+    numbers is an error naming the file and the line."""
+    frames, values = [], []
+    for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+        if line.strip():
+            try:
+                frame, value = map(float, line.split(","))
+            except ValueError:
+                raise ValueError(
+                    f"{path}:{number}: expected 'frame,value', got {line[:60]!r}"
+                ) from None
+            frames.append(frame)
+            values.append(value)
+    return np.array(frames), np.array(values)
 
 
 def load_run(path: str | Path) -> Run:
@@ -73,7 +82,13 @@ def load_run(path: str | Path) -> Run:
     config_path = path / "config.yaml"
     if not config_path.is_file():
         raise FileNotFoundError(f"{path} is not a gentlerl run directory (no config.yaml)")
-    run = Run(path, yaml.safe_load(config_path.read_text()))
+    try:
+        config = yaml.safe_load(config_path.read_text(errors="replace"))
+    except yaml.YAMLError as err:
+        raise ValueError(f"{config_path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    if not isinstance(config, dict) or not {"task", "variant", "seed"} <= set(config):
+        raise ValueError(f"{config_path}: not a run's config (a mapping with task, variant, seed)")
+    run = Run(path, config)
     scalars = path / "logs" / "scalars"
     for csv_path in sorted(scalars.rglob("*.csv")):
         run.scalars[str(csv_path.relative_to(scalars).with_suffix(""))] = _read_series(csv_path)

@@ -25,12 +25,14 @@ from gentlerl.cli import command_parser
 from gentlerl.envs import HandEnv, make_env
 from gentlerl.envs.assets import FINGERTIPS
 from gentlerl.functional import impact
+from gentlerl.outputs import check_output_file
 
 FULL_RED_AT = 10.0  # N
 # Blue and black: the scene's background is green (gymnasium-robotics' skybox) and the fingertips
 # run from yellow to red, so neither green nor red would stand out.
 BLOCK_RGBA = {"success": (0.1, 0.3, 1.0, 1.0), "broken": (0.05, 0.05, 0.05, 1.0)}
 PANEL_BG = (32, 32, 32)
+VIDEO_SUFFIXES = (".mp4", ".gif")
 
 
 def impact_rgba(m: float) -> tuple[float, float, float, float]:
@@ -149,9 +151,7 @@ def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: int = 20) -
     """
     import imageio.v2 as imageio
 
-    path = Path(path)
-    if path.suffix not in (".mp4", ".gif"):
-        raise ValueError(f"video path must end in .mp4 or .gif, got {path}")
+    path = check_output_file(path, VIDEO_SUFFIXES)
     if not frames:
         raise ValueError("no frames to write")
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -194,6 +194,9 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
             f"--episodes and --fps must be >= 1 and --size >= 16, got {args.episodes}, "
             f"{args.fps} and {args.size}"
         )
+    if not 0 <= args.seed < 2**32:
+        raise SystemExit(f"--seed must be in [0, 2**32), got {args.seed}")
+    check_output_file(args.out, VIDEO_SUFFIXES)  # before the rendering, not after
     cfg, actor = load_policy(args.checkpoint)
     env = make_env(cfg.task, seed=args.seed, **cfg.env.kwargs)
     try:

@@ -136,7 +136,7 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
     if not changes:
         return []
     path = run_dir / CONFIG_HISTORY
-    history = yaml.safe_load(path.read_text()) if path.exists() else []
+    history = _history(path)
     entry = {n: {"was": old, "now": new} for n, (old, new) in changes.items()}
     history.append({"resumed_at_frame": int(frames), "changed": entry})
     fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=f".{CONFIG_HISTORY}.", suffix=".tmp")
@@ -144,6 +144,22 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
         yaml.safe_dump(history, f, sort_keys=False)
     os.replace(tmp, path)
     return sorted(changes)
+
+
+def _history(path: Path) -> list:
+    """The entries of ``config_history.yaml`` (none if it is missing or empty); a file that is
+    not a YAML list is an error naming it."""
+    if not path.exists():
+        return []
+    try:
+        history = yaml.safe_load(path.read_text(errors="replace"))
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    if history is None:
+        return []
+    if not isinstance(history, list):
+        raise ValueError(f"{path} must be a YAML list of changes, got a {type(history).__name__}")
+    return history
 
 
 def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) -> None:

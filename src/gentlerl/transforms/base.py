@@ -14,6 +14,7 @@ and are zero after a reset.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import torch
@@ -45,9 +46,24 @@ class TransitionTransform(Transform):
         return next_tensordict
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        next_tensordict = tensordict.get("next")
+        next_tensordict = tensordict.get("next", None)
+        if next_tensordict is None:
+            raise ValueError(
+                f"{type(self).__name__} needs a transition: a tensordict with a 'next' entry, "
+                f"got keys {sorted(map(str, tensordict.keys()))}"
+            )
         next_tensordict.update(self.compute(tensordict, next_tensordict))
         return tensordict
+
+    def read(self, tensordict: TensorDictBase, key: Any) -> torch.Tensor:
+        """``tensordict[key]``, or a ``ValueError`` naming the missing key and the ones there."""
+        value = tensordict.get(key, None)
+        if value is None:
+            raise ValueError(
+                f"{type(self).__name__} reads {key!r}, which the tensordict lacks; it has "
+                f"{sorted(map(str, tensordict.keys()))} (set in_keys to the env's key)"
+            )
+        return value
 
     def reset_outputs(self, tensordict_reset: TensorDictBase) -> dict[str, torch.Tensor]:
         """Values of the observation-spec outputs right after a reset (none by default)."""
@@ -75,6 +91,20 @@ class TransitionTransform(Transform):
                 shape=(*reward_spec.shape, 1), device=reward_spec.device, dtype=torch.float32
             )
         return reward_spec
+
+
+def check_lam(name: str, lam: Any) -> tuple[float, float]:
+    r"""``lam`` as two floats :math:`[\lambda_1, \lambda_2]`, both finite and >= 0, or a
+    ``ValueError`` naming ``name`` and the value."""
+    try:
+        values = tuple(float(v) for v in lam)
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != 2 or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise ValueError(
+            f"{name} lam must be two finite numbers [lambda_1 >= 0, lambda_2 >= 0], got {lam!r}"
+        )
+    return values  # type: ignore[return-value]
 
 
 class ModelRewardTransform(TransitionTransform):

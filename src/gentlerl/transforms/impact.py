@@ -8,7 +8,7 @@ from torchrl.data import Composite
 
 from gentlerl import keys
 from gentlerl.functional import impact, impact_penalty
-from gentlerl.transforms.base import TransitionTransform
+from gentlerl.transforms.base import TransitionTransform, check_lam
 
 
 class ImpactPenalty(TransitionTransform):
@@ -48,11 +48,9 @@ class ImpactPenalty(TransitionTransform):
                 f"ImpactPenalty takes one force key and writes [impact, penalty]; got in_keys="
                 f"{in_keys}, out_keys={out_keys}"
             )
-        if lam[0] < 0:
-            raise ValueError(f"lam[0] (sigmoid steepness) must be >= 0, got {lam}")
+        self.lam = check_lam("ImpactPenalty", lam)
         super().__init__(in_keys=in_keys, out_keys=out_keys)
         self.scalar_out_keys = (out_keys[1],)
-        self.lam = (float(lam[0]), float(lam[1]))
 
     def observation_out_shapes(self, observation_spec: Composite) -> dict[str, tuple[int, ...]]:
         force_shape = observation_spec[self.in_keys[0]].shape[len(observation_spec.shape) :]
@@ -65,6 +63,12 @@ class ImpactPenalty(TransitionTransform):
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
     ) -> dict[str, torch.Tensor]:
-        m = impact(tensordict.get(self.in_keys[0]), next_tensordict.get(self.in_keys[0]))
+        force, next_force = (self.read(td, self.in_keys[0]) for td in (tensordict, next_tensordict))
+        if force.shape != next_force.shape or force.ndim < 2:
+            raise ValueError(
+                f"ImpactPenalty: {self.in_keys[0]!r} must be [..., n_sites, n_channels] at both "
+                f"steps, got {tuple(force.shape)} and {tuple(next_force.shape)}"
+            )
+        m = impact(force, next_force)
         penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
         return {self.out_keys[0]: m, self.out_keys[1]: penalty}

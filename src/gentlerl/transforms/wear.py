@@ -15,7 +15,7 @@ from tensordict import TensorDictBase
 
 from gentlerl import keys
 from gentlerl.functional import force_penalty, torque_penalty
-from gentlerl.transforms.base import TransitionTransform
+from gentlerl.transforms.base import TransitionTransform, check_lam
 
 
 class _LevelPenalty(TransitionTransform):
@@ -35,7 +35,7 @@ class _LevelPenalty(TransitionTransform):
         in_keys: list[str] | None = None,
         out_keys: list[str] | None = None,
     ) -> None:
-        lam = self.default_lam if lam is None else tuple(lam)
+        lam = self.default_lam if lam is None else lam
         in_keys = in_keys or [self.default_keys[0]]
         out_keys = out_keys or [self.default_keys[1]]
         name = type(self).__name__
@@ -44,16 +44,14 @@ class _LevelPenalty(TransitionTransform):
                 f"{name} reads one key and writes one penalty; got in_keys={in_keys}, "
                 f"out_keys={out_keys}"
             )
-        if len(lam) != 2 or lam[0] < 0:
-            raise ValueError(f"{name} lam must be [lambda_1 >= 0, lambda_2], got {lam}")
+        self.lam = check_lam(name, lam)
         super().__init__(in_keys=in_keys, out_keys=out_keys)
         self.scalar_out_keys = (out_keys[0],)
-        self.lam = (float(lam[0]), float(lam[1]))
 
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
     ) -> dict[str, torch.Tensor]:
-        level = next_tensordict.get(self.in_keys[0])
+        level = self.read(next_tensordict, self.in_keys[0])
         return {self.out_keys[0]: self.penalty(level, *self.lam).unsqueeze(-1)}
 
 
