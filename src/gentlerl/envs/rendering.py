@@ -22,8 +22,9 @@ import warnings
 import numpy as np
 
 INSTALL_HINT = (
-    "offscreen rendering needs OSMesa: `apt-get install libosmesa6` and run with "
-    "`MUJOCO_GL=osmesa PYOPENGL_PLATFORM=osmesa` (EGL does not work on these machines)"
+    "offscreen rendering needs EGL or OSMesa: run with `MUJOCO_GL=egl` (libEGL, e.g. "
+    "`apt-get install libegl1`), or `apt-get install libosmesa6` and run with "
+    "`MUJOCO_GL=osmesa PYOPENGL_PLATFORM=osmesa`"
 )
 
 
