@@ -1,7 +1,8 @@
 """Learner throughput: full D4PG updates/s at a run's scale, and fused vs looped critics.
 
     python benchmarks/learner_speed.py [--scale paper|recipe] [--threads 2] [--device cpu]
-        [--min-time 3] [--markdown]
+        [--min-time 3] [--compile] [--markdown]
+    python benchmarks/learner_speed.py --compare REV [--rounds 5] [--scale ...] [--threads 1]
 
 Sizes come from the training config (the presets of ``gentlerl.training.make_config``): ``--scale paper`` is the
 ``paper`` preset (batch 256, critics 400-300, actor 300-200, 101 atoms, penalty ensemble 5 x 3 x
@@ -16,15 +17,29 @@ of one step of the training loop, without replay sampling and priority writes. "
 also reads every loss output with ``.item()`` as the training loop logs them (on a GPU: one wait
 for the device per update). "Fused vs loop" times forward+backward of the critics as one ``FusedCritic`` against a
 python loop over separate ``nn.Sequential`` critics of the same architecture. The matmul peak is
-a 2048^2 float32 matmul on the same threads / device.
+a 2048^2 float32 matmul on the same threads / device. ``--compile`` times the update with
+``learner.compile`` on.
+
+``--compare REV`` times the full update side by side in one run: the code at git revision ``REV``
+(``git archive``, eager, its model Adam as ``IntrinsicRewards`` had it there), this tree eager and
+this tree compiled. Each runs in its own process, set up and warmed up (compiled) first; then
+``--rounds`` rounds give each process one ``--min-time`` block in turn, so all three see the same
+machine load; a ratio is the median of the per-round ratios to ``REV``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import platform
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import torch
 from tensordict import TensorDict
@@ -102,7 +117,7 @@ def _batch(scale: Scale, device: str) -> TensorDict:
     return td.to(device)
 
 
-def _learner(scale: Scale, device: str) -> Learner:
+def _learner(scale: Scale, device: str, compile: bool = False) -> Learner:
     net, lrn = scale.cfg.network, scale.cfg.learner
     loss = MultiHeadD4PGLoss(
         make_actor(OBS, ACT, net.actor_hidden),
@@ -112,21 +127,25 @@ def _learner(scale: Scale, device: str) -> Learner:
     loss.make_value_estimator(gamma=lrn.gamma)
     loss.set_keys(terminated=keys.NSTEP_TERMINATED)
     # Moved before Learner builds its optimiser, so Adam holds the device's parameters.
+    options = {"compile": True} if compile else {}  # as a revision without the option is called
     return Learner(
         loss.to(device),
         lr_actor=lrn.lr_actor,
         lr_critic=lrn.lr_critic,
         target_update_period=lrn.target_update_period,
+        **options,
     )
 
 
-def full_update(scale: Scale, device: str, min_time: float) -> tuple[float, float]:
-    """(updates/s, updates/s with the loop's ``.item()`` reads of every loss output)."""
+def make_full_update(
+    scale: Scale, device: str, *, compile: bool = False, fused_model_adam: bool = True
+) -> Callable[[], tuple[torch.Tensor, TensorDict]]:
+    """One learner update and one penalty-ensemble update (its Adam fused as ``IntrinsicRewards``)."""
     g = scale.cfg.gentleness
-    learner = _learner(scale, device)
+    learner = _learner(scale, device, compile)
     model = PenaltyModel(OBS, ACT, g.ensemble_size, (g.model_hidden,) * 3)
     model_loss = EnsembleModelLoss(model, name="penalty").to(device)
-    opt_m = torch.optim.Adam(model_loss.parameters(), g.lr_model)
+    opt_m = torch.optim.Adam(model_loss.parameters(), g.lr_model, fused=fused_model_adam or None)
     model_target = HardUpdate(model_loss, value_network_update_interval=g.penalty_target_period - 1)
     batch = _batch(scale, device)
     model_batch = _batch(scale, device)[: g.model_batch_size]
@@ -141,11 +160,76 @@ def full_update(scale: Scale, device: str, min_time: float) -> tuple[float, floa
         model_target.step()
         return model_out, learner.update(batch)
 
+    return step
+
+
+def full_update(scale: Scale, device: str, min_time: float, compile: bool) -> tuple[float, float]:
+    """(updates/s, updates/s with the loop's ``.item()`` reads of every loss output)."""
+    step = make_full_update(scale, device, compile=compile)
+
     def step_and_read() -> None:
         model_out, out = step()
         [v.item() for v in (model_out, *out.values())]
 
     return 1.0 / _time(step, device, min_time), 1.0 / _time(step_and_read, device, min_time)
+
+
+def serve(args: argparse.Namespace) -> None:
+    """A ``--compare`` worker: warm up, print ``ready``, then time one block per stdin line."""
+    step = make_full_update(
+        make_scale(args.scale), args.device, compile=args.compile, fused_model_adam=not args.rev
+    )
+    for _ in range(10):
+        step()
+    print("ready", flush=True)
+    for _ in sys.stdin:
+        print(1.0 / _time(step, args.device, args.min_time, warmup=2), flush=True)
+
+
+def compare(args: argparse.Namespace) -> None:
+    """Before (``--compare REV``) vs this tree, eager and compiled, in alternating rounds."""
+    script, root = Path(__file__).resolve(), Path(__file__).resolve().parents[1]
+    common = [f"--scale={args.scale}", f"--threads={args.threads}", f"--device={args.device}"]
+    common.append(f"--min-time={args.min_time}")
+    with tempfile.TemporaryDirectory() as old:
+        archive = subprocess.run(
+            ["git", "-C", str(root), "archive", args.compare, "src"],
+            check=True,
+            capture_output=True,
+        )
+        subprocess.run(["tar", "-x", "-C", old], input=archive.stdout, check=True)
+        runs = {
+            f"before ({args.compare}), eager": ([f"--serve-rev={args.compare}"], f"{old}/src"),
+            "after, eager": ([], str(root / "src")),
+            "after, learner.compile": (["--compile"], str(root / "src")),
+        }
+        workers = {}
+        for name, (extra, path) in runs.items():
+            env = {**os.environ, "PYTHONPATH": path}
+            cmd = [sys.executable, str(script), "--serve", *common, *extra]
+            workers[name] = subprocess.Popen(cmd, env=env, text=True, stdin=-1, stdout=-1)
+            start = time.perf_counter()
+            if workers[name].stdout.readline().strip() != "ready":
+                raise RuntimeError(f"{name}: the worker did not start")
+            print(f"{name}: set up and warmed up in {time.perf_counter() - start:.0f} s")
+        rates: dict[str, list[float]] = {name: [] for name in workers}
+        for _ in range(args.rounds):
+            for name, worker in workers.items():
+                worker.stdin.write("go\n")
+                worker.stdin.flush()
+                rates[name].append(float(worker.stdout.readline()))
+        for worker in workers.values():
+            worker.stdin.close()
+            worker.wait()
+    base = rates[next(iter(rates))]
+    print(f"\n{args.rounds} rounds of {args.min_time} s, load average {os.getloadavg()[0]:.1f}")
+    print("\n| full update | updates/s (median) | ms | x before (median of rounds) | rounds |")
+    print("| --- | ---: | ---: | ---: | --- |")
+    for name, r in rates.items():
+        ratio = statistics.median(a / b for a, b in zip(r, base, strict=True))
+        ups = statistics.median(r)
+        rounds = ", ".join(f"{x:.1f}" for x in r)
+        print(f"| {name} | {ups:.1f} | {1e3 / ups:.2f} | {ratio:.2f}x | {rounds} |")
 
 
 def _loop_critics(scale: Scale, device: str) -> nn.ModuleList:
@@ -191,11 +275,20 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--min-time", type=float, default=3.0, help="seconds timed per row")
     parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--compile", action="store_true", help="learner.compile on")
+    parser.add_argument("--compare", metavar="REV", help="before (REV) vs after, side by side")
+    parser.add_argument("--rounds", type=int, default=5, help="--compare: rounds of blocks")
+    parser.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--serve-rev", dest="rev", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
+    if args.serve:
+        return serve(args)
+    if args.compare:
+        return compare(args)
     scale, t = make_scale(args.scale), args.min_time
-    ups, ups_read = full_update(scale, args.device, t)
+    ups, ups_read = full_update(scale, args.device, t, args.compile)
     fused, looped, gflops = critics(scale, args.device, t)
     peak = matmul_peak(args.device, t)
     name = (
@@ -217,7 +310,8 @@ def main() -> None:
     header = (
         f"scale {args.scale}: batch {scale.batch}, {k} heads {'-'.join(map(str, net.critic_hidden))}"
         f" x {net.num_atoms} atoms, actor {'-'.join(map(str, net.actor_hidden))}; device: "
-        f"{args.device} ({name}), torch {torch.__version__}, threads: {args.threads}"
+        f"{args.device} ({name}), torch {torch.__version__}, threads: {args.threads}, "
+        f"learner.compile: {args.compile}"
     )
     if args.markdown:
         print(header + "\n\n| what | value |\n| --- | ---: |")

@@ -114,6 +114,8 @@ class AgentBuilder:
             lr_actor=learner.lr_actor,
             lr_critic=learner.lr_critic,
             target_update_period=learner.target_update_period,
+            compile=learner.compile,
+            cudagraphs=learner.cudagraphs,
         )
 
     def make_policy(self, learner: Learner) -> torch.nn.Module:

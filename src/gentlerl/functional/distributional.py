@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 __all__ = ["categorical_projection", "categorical_support"]
@@ -55,22 +57,30 @@ def categorical_projection(
             "next_probs needs at least 2 atoms on its last dim, "
             f"got shape {tuple(next_probs.shape)}"
         )
-    v_min = torch.as_tensor(v_min, dtype=next_probs.dtype, device=next_probs.device)
-    v_max = torch.as_tensor(v_max, dtype=next_probs.dtype, device=next_probs.device)
-    if not (v_min.isfinite().all() and v_max.isfinite().all() and (v_max > v_min).all()):
-        raise ValueError(f"need finite v_min < v_max, got v_min={v_min}, v_max={v_max}")
-    v_min, v_max = torch.broadcast_tensors(v_min, v_max)
-    support = categorical_support(v_min, v_max, num_atoms)
-    v_min, v_max = v_min.unsqueeze(-1), v_max.unsqueeze(-1)
+    _check_float_support(v_min, v_max)
+    v_min = torch.as_tensor(v_min, dtype=next_probs.dtype, device=next_probs.device).unsqueeze(-1)
+    v_max = torch.as_tensor(v_max, dtype=next_probs.dtype, device=next_probs.device).unsqueeze(-1)
     delta = (v_max - v_min) / (num_atoms - 1)
+    support = v_min + delta * torch.arange(num_atoms, device=delta.device, dtype=delta.dtype)
     moved = reward.unsqueeze(-1) + discount.unsqueeze(-1) * support
-    moved, probs = torch.broadcast_tensors(torch.clamp(moved, v_min, v_max), next_probs)
-    position = (moved - v_min) / delta
-    lower = position.floor().clamp_(0, num_atoms - 1)
-    upper = position.ceil().clamp_(0, num_atoms - 1)
-    # When an atom lands exactly on the grid, lower == upper and it keeps its whole mass.
+    position = (torch.clamp(moved, v_min, v_max) - v_min) / delta
+    position, probs = torch.broadcast_tensors(position, next_probs)
+    lower = position.floor().clamp(0, num_atoms - 1)
+    # When an atom lands exactly on the grid its upper weight is 0: the lower atom keeps its mass.
     upper_weight = position - lower
-    projected = torch.zeros_like(probs)
-    projected.scatter_add_(-1, lower.long(), probs * (1.0 - upper_weight))
-    projected.scatter_add_(-1, upper.long(), probs * upper_weight)
-    return projected
+    upper = (lower + 1).clamp(max=num_atoms - 1)
+    index = torch.cat([lower, upper], -1).long()
+    mass = torch.cat([probs * (1.0 - upper_weight), probs * upper_weight], -1)
+    return torch.zeros_like(probs).scatter_add_(-1, index, mass)
+
+
+def _check_float_support(v_min: float | torch.Tensor, v_max: float | torch.Tensor) -> None:
+    """``ValueError`` unless float bounds are finite with ``v_min < v_max``.
+
+    Tensor bounds are not checked: reading them would wait for their device (a host sync on every
+    update, and a graph break under ``torch.compile``); the critic checks its supports when built.
+    """
+    if isinstance(v_min, torch.Tensor) or isinstance(v_max, torch.Tensor):
+        return
+    if not (math.isfinite(v_min) and math.isfinite(v_max) and v_min < v_max):
+        raise ValueError(f"need finite v_min < v_max, got v_min={v_min}, v_max={v_max}")

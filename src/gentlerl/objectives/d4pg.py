@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
-from tensordict.utils import NestedKey
+from tensordict.utils import NestedKey, unravel_key
 from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators, _cache_values
 
@@ -151,6 +151,16 @@ class MultiHeadD4PGLoss(LossModule):
         self.actor_in_keys = list(actor_network.in_keys)
         self.action_key = actor_network.out_keys[0]
         self.value_in_keys = list(value_network.in_keys)
+
+    @property
+    def in_keys(self) -> list[NestedKey]:
+        """Every entry the losses read (the priority weights whether or not they are used)."""
+        t = self.tensor_keys
+        states = [k for k in (*self.actor_in_keys, *self.value_in_keys) if k != self.action_key]
+        nxt = [("next", k) for k in (*states, *t.rewards)]
+        keys_ = {*self.actor_in_keys, *self.value_in_keys, *nxt, ("next", t.terminated)}
+        keys_ |= {t.steps_to_next_obs, t.priority_weight}
+        return sorted((unravel_key(k) for k in keys_), key=str)
 
     @property
     def reward_keys(self) -> list[NestedKey]:

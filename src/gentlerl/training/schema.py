@@ -101,6 +101,8 @@ class LearnerConfig:
     target_update_period: int = _f(100, "updates between hard target-network copies")
     policy_noise: float = _f(0.0, "TD3 target policy smoothing std (0: D4PG)")
     episodic_intrinsic: bool = _f(False, "cut the curiosity heads' bootstrap at termination too")
+    compile: bool = _f(False, "torch.compile the learner's update (the first updates compile it)")
+    cudagraphs: bool = _f(False, "replay the learner's update as a CUDA graph (CUDA learners only)")
 
 
 @dataclass
