@@ -551,3 +551,66 @@ def test_an_empty_config_history_does_not_crash_a_resume(tmp_path):
     (tmp_path / CONFIG_HISTORY).write_text("a: mapping\n")
     with pytest.raises(ValueError, match="must be a YAML list"):
         record_config_changes(tmp_path, state, now)
+
+
+# --- sweeps: interrupted points resume, an interrupted sweep leaves no trainer behind ---------
+
+SPAWNING_RECIPE = """
+import subprocess, sys, time
+from pathlib import Path
+run_dir = Path(next(a for a in sys.argv if a.startswith("run_dir="))[8:])
+child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+(run_dir / "pids").write_text(f"{child.pid}\\n")
+time.sleep(120)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:  # a zombie is dead too
+        return f.read().split(")")[-1].split()[0] != "Z"
+
+
+def test_an_interrupted_sweep_kills_its_trainers_process_groups(tmp_path):
+    import dataclasses
+    import time
+
+    from gentlerl.sweeps import expand, run_grid, stop_trainers
+
+    script = tmp_path / "spawning.py"
+    script.write_text(SPAWNING_RECIPE)
+    runs = [dataclasses.replace(r, script=script) for r in expand({"seed": [0]}, tmp_path / "g")]
+    sweep_thread = threading.Thread(target=run_grid, args=(runs,), daemon=True)
+    sweep_thread.start()
+    pids = runs[0].run_dir / "pids"
+    for _ in range(200):
+        if pids.exists() and pids.read_text().endswith("\n"):
+            break
+        time.sleep(0.05)
+    grandchild = int(pids.read_text())
+    assert _alive(grandchild)
+    stop_trainers()  # what run_grid does when the sweep is interrupted or sent SIGTERM
+    sweep_thread.join(30)
+    assert not sweep_thread.is_alive()
+    for _ in range(100):
+        if not _alive(grandchild):
+            break
+        time.sleep(0.05)
+    assert not _alive(grandchild)
+
+
+def test_a_point_interrupted_before_its_first_checkpoint_resumes(tmp_path):
+    from gentlerl.sweeps import main as sweep
+
+    from .test_sweeps import TINY
+
+    path = _sweep_file(tmp_path, "parameters:\n  variant: {values: [r]}\n  seed: {values: [0]}\n")
+    run = tmp_path / "out" / "evil" / "variant-r_seed-0"
+    (run / "logs" / "scalars").mkdir(parents=True)  # what a point killed early leaves
+    (run / "config.yaml").write_text("task: touch\n")
+    args = [path, "--out", str(tmp_path / "out"), *sum((["--set", o] for o in TINY), [])]
+    assert sweep(args) == 0
+    assert (run / "DONE").exists() and (run / "checkpoint.pt").exists()
