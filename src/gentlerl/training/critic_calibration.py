@@ -7,7 +7,8 @@ by the run's own reward transforms, with their current models), bootstrapped whe
 cut as the learner bootstraps it (:class:`~gentlerl.objectives.MultiHeadD4PGLoss`): with the
 critic's own :math:`\hat Q^k(s', \pi(s'))` at the last next-state after a truncation (time limit),
 and after a termination too for the heads that are not episodic; an episodic head's return stops
-at termination. A calibrated critic has :math:`\hat Q \approx G` on average (its bias near 0) and
+at termination. The bootstrap reads the online critic and actor (the learner's target copies
+lag them by at most ``learner.target_update_period`` updates). A calibrated critic has :math:`\hat Q \approx G` on average (its bias near 0) and
 its realised returns inside the head's support :math:`[v_{min}, v_{max}]`.
 
 Used by the ``gentlerl calibration`` command (:mod:`gentlerl.diagnostics`) and, on the
