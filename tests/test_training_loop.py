@@ -114,7 +114,8 @@ def test_same_seed_same_logged_scalars_with_the_hand_env(tmp_path):
         runs[name] = _logged_scalars(tmp_path / name)
     calibration = [name for name in runs["first"] if name.startswith("calibration/")]
     assert len(calibration) == 3 * 3  # predicted, realised, bias of each critic head
-    assert len(runs["first"]) - len(calibration) == 24, sorted(runs["first"])
+    # 24 + train/penalty_surprise_per_contact_step (recomputed r^sp at sampling)
+    assert len(runs["first"]) - len(calibration) == 25, sorted(runs["first"])
     impacts = [value for _, value in runs["first"]["episode/max_impact"]]
     assert len(impacts) >= 6 and len(set(impacts)) > 1  # real episodes, not a constant
     assert runs["again"] == runs["first"]

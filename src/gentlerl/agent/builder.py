@@ -7,9 +7,11 @@ builds networks itself, so every runner trains the same agent.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import torch
+from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
 from torchrl.envs import EnvBase
@@ -29,6 +31,18 @@ from gentlerl.objectives import MultiHeadD4PGLoss
 
 if TYPE_CHECKING:
     from gentlerl.training.config import TrainConfig
+
+
+def episode_steps(env: EnvBase, default: int = 1000) -> int:
+    """``env.time_limit`` (control steps per episode) where the env names one, else ``default``.
+
+    Read without ``getattr`` on the env: a batched TorchRL env forwards unknown attributes to its
+    workers, which recurses before they start.
+    """
+    limit = vars(env).get("time_limit")
+    if limit is None and isinstance(getattr(type(env), "time_limit", None), property):
+        limit = env.time_limit
+    return default if limit is None else int(limit)
 
 
 class AgentBuilder:
@@ -51,8 +65,8 @@ class AgentBuilder:
             k: tuple(spec[k].shape[batch_dims:]) for k in keys.DYNAMICS_FEATURES if k in spec.keys()
         }
         self.reward_keys = reward_keys(cfg.variant)
-        #: Steps per episode (the env's ``time_limit``): the horizon of the dense heads' supports.
-        self.horizon = int(getattr(env, "time_limit", 1000))
+        #: Steps per episode (the env's ``time_limit``, else 1000): the dense heads' horizon.
+        self.horizon = episode_steps(env)
 
     def head_supports(self) -> tuple[list[float], list[float]]:
         """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.agent.variants.head_supports`.
@@ -125,9 +139,12 @@ class AgentBuilder:
         )
 
     def make_replay(
-        self, total_updates: int
+        self, total_updates: int, window_keys: Sequence[NestedKey] = ()
     ) -> tuple[NStepWriter, ReplayBuffer, LinearScheduler | None]:
-        """The agent's prioritised buffer, its n-step writer and its beta schedule."""
+        """The agent's prioritised buffer, its n-step writer and its beta schedule.
+
+        ``window_keys``: entries kept per window step (:attr:`IntrinsicRewards.window_keys`).
+        """
         replay = self.cfg.replay
         rb = make_replay_buffer(
             replay.buffer_size,
@@ -137,7 +154,9 @@ class AgentBuilder:
             beta=replay.beta,
             n_steps=None,
         )
-        writer = NStepWriter(rb, replay.n_steps, self.cfg.learner.gamma, self.reward_keys)
+        writer = NStepWriter(
+            rb, replay.n_steps, self.cfg.learner.gamma, self.reward_keys, window_keys
+        )
         schedule = (
             make_beta_scheduler(rb, 1.0, max(total_updates, 1)) if replay.prioritized else None
         )

@@ -12,15 +12,16 @@ from typing import TYPE_CHECKING, Any
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
 from torchrl.envs.transforms import Compose
 from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
-from gentlerl.data import make_model_buffer
+from gentlerl.data import WINDOW, make_model_buffer, nstep_return
 from gentlerl.objectives import EnsembleModelLoss
-from gentlerl.transforms import ImpactPenalty, ModelRewardTransform
+from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
 
 if TYPE_CHECKING:
     from gentlerl.training.config import GentlenessConfig
@@ -86,6 +87,56 @@ class IntrinsicRewards:
     @property
     def gated_transforms(self) -> list[ModelRewardTransform]:
         return [t for t in self.transform if isinstance(t, ModelRewardTransform)]
+
+    @property
+    def recomputed(self) -> list[PenaltySurprise]:
+        """The rewards recomputed at sampling (``settings.recompute_surprise``): penalty surprise."""
+        if not self.settings.recompute_surprise:
+            return []
+        return [t for t in self.gated_transforms if isinstance(t, PenaltySurprise)]
+
+    @property
+    def window_keys(self) -> list[NestedKey]:
+        """What the learner's buffer keeps of each window step for :meth:`refresh`."""
+        wanted: list[NestedKey] = []
+        for t in self.recomputed:
+            wanted += [t.model.obs_key, t.model.action_key, ("next", t.penalty_key)]
+        return list(dict.fromkeys(wanted))
+
+    def refresh(self, batch: TensorDictBase, gamma: float) -> dict[str, float]:
+        r"""Recompute the n-step penalty surprise of a sampled batch with today's target models.
+
+        Stored at collection, :math:`r^{s_p}` (eq. 8) would keep the surprise of the model of that
+        moment: a bonus for a contact the model has learned since never fades. Here each
+        transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
+        :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
+        (:func:`~gentlerl.data.nstep_return`); ``("next", "penalty_surprise")`` is replaced in
+        place. Returns ``rsp_per_contact_step``: the mean recomputed :math:`r^{s_p}` over the
+        window steps with a penalty (0 with none), the number that must fall as the model learns.
+        """
+        metrics: dict[str, float] = {}
+        if not self.recomputed:
+            return metrics
+        window = batch.get(WINDOW, None)
+        if window is None:
+            raise KeyError(
+                "recompute_surprise needs each transition's window of steps ('window'), written "
+                "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
+            )
+        flat = window.reshape(-1)
+        for t in self.recomputed:
+            key = t.out_keys[0]
+            per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
+            steps = batch.get("steps_to_next_obs")
+            batch.set(("next", key), nstep_return(per_step, steps, gamma))
+            contact = window.get(("next", t.penalty_key)) < 0
+            counted = contact & (torch.arange(window.shape[-1]) < steps.reshape(-1, 1)).unsqueeze(
+                -1
+            )
+            metrics[f"{key}_per_contact_step"] = float(
+                per_step[counted].mean() if counted.any() else 0.0
+            )
+        return metrics
 
     @property
     def intrinsic_on(self) -> bool:

@@ -9,6 +9,7 @@ from gentlerl.data.replay import (
     make_nstep_transform,
     make_replay_buffer,
 )
+from gentlerl.data.windows import WINDOW, nstep_return, nstep_windows
 
 __all__ = [
     "FlatPriorityTree",
@@ -19,4 +20,7 @@ __all__ = [
     "make_model_buffer",
     "make_nstep_transform",
     "make_replay_buffer",
+    "nstep_return",
+    "nstep_windows",
+    "WINDOW",
 ]

@@ -13,7 +13,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from functools import partial
 
+import torch
 from tensordict import TensorDictBase
+from tensordict.utils import NestedKey
 from torchrl.data import (
     LazyTensorStorage,
     RandomSampler,
@@ -24,6 +26,7 @@ from torchrl.envs.transforms import Compose, MultiStepTransform, Transform
 
 from gentlerl import keys
 from gentlerl.data.prioritized import TorchPrioritizedSampler
+from gentlerl.data.windows import WINDOW, nstep_windows
 
 
 class NStepTerminated(Transform):
@@ -103,22 +106,39 @@ class NStepWriter:
     TorchRL's ``MultiStepTransform`` computes the windows along the last (time) dim, keeping the
     last ``n_steps`` of each row for the next write; the flat buffer then gets the rows' ready
     transitions in order. :attr:`tail` (those last steps) is what a checkpoint needs to continue.
+
+    With ``window_keys``, every transition also stores its window's raw steps (those entries of
+    steps ``t .. t + n - 1``) under ``"window"`` (:func:`~gentlerl.data.windows.nstep_windows`),
+    so that a model-based reward can be recomputed when the transition is sampled.
     """
 
     def __init__(
-        self, rb: TensorDictReplayBuffer, n_steps: int, gamma: float, reward_keys: Sequence[str]
+        self,
+        rb: TensorDictReplayBuffer,
+        n_steps: int,
+        gamma: float,
+        reward_keys: Sequence[str],
+        window_keys: Sequence[NestedKey] = (),
     ) -> None:
         if rb.transform is not None and len(rb.transform):
             raise ValueError("NStepWriter needs a buffer without transforms (n_steps=None)")
         self.rb, self.n_steps = rb, n_steps
+        self.window_keys = list(window_keys)
         self._make_transform = partial(make_nstep_transform, n_steps, gamma, list(reward_keys))
         self.transform = self._make_transform()
         self.tail: TensorDictBase | None = None
+        self._held: TensorDictBase | None = None  # the steps the transform holds back, raw
 
     def extend(self, batch: TensorDictBase) -> None:
         self.tail = batch[..., -self.n_steps :].clone()
+        if self.window_keys:  # the same concatenation as MultiStepTransform's
+            steps = batch.select(*self.window_keys)
+            steps = steps if self._held is None else torch.cat([self._held, steps], -1)
+            self._held = steps[..., -self.n_steps :].clone()
         ready = self.transform.inv(batch)
         if ready is not None:
+            if self.window_keys:
+                ready.set(WINDOW, nstep_windows(steps, self.n_steps, ready.shape[-1]))
             self.rb.extend(ready.reshape(-1))
 
     def state_dict(self) -> dict[str, TensorDictBase | None]:
@@ -131,7 +151,7 @@ class NStepWriter:
         there: their pending transitions bootstrap from that step (as a time limit would), none
         lost and none summed across the cut. Writing the tail alone only primes the transform.
         """
-        self.transform, self.tail = self._make_transform(), None
+        self.transform, self.tail, self._held = self._make_transform(), None, None
         if state["tail"] is not None:
             tail = state["tail"].clone()
             for key in (keys.DONE, keys.TRUNCATED):

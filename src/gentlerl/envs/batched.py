@@ -24,7 +24,13 @@ from torchrl.envs import EnvBase
 from gentlerl import keys
 from gentlerl.envs.environment import HandEnvironment
 from gentlerl.envs.rendering import render
-from gentlerl.envs.torchrl_env import FLAG_KEYS, hand_specs, hand_tensordict, step_flags
+from gentlerl.envs.torchrl_env import (
+    FLAG_KEYS,
+    hand_specs,
+    hand_tensordict,
+    step_flags,
+    step_limit,
+)
 
 
 def available_cores() -> int:
@@ -90,6 +96,11 @@ class BatchedHandEnv(EnvBase):
     @property
     def num_envs(self) -> int:
         return len(self.dm_envs)
+
+    @property
+    def time_limit(self) -> int:
+        """Control steps per episode (every hand has the same limit)."""
+        return step_limit(self.dm_envs[0])
 
     # -- stepping ------------------------------------------------------------------------
     def _physics(self, hands: list[int], stepping: list[bool]) -> None:

@@ -8,6 +8,7 @@ the batched env (:mod:`gentlerl.envs.batched`), so one hand and N hands write th
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -54,6 +55,11 @@ def hand_specs(
         "reward": Unbounded((1,), device=device),
         "done": Composite(done=_flag(), terminated=_flag(), truncated=_flag()),
     }
+
+
+def step_limit(env: HandEnvironment) -> int:
+    """``env``'s time limit in control steps (dm_control keeps it as a float step count)."""
+    return math.ceil(env._step_limit)
 
 
 def step_flags(env: HandEnvironment, discount: float | None) -> tuple[bool, ...]:
@@ -118,6 +124,11 @@ class HandEnv(EnvBase):
         self.reward_spec = specs["reward"]
         self.full_done_spec = specs["done"]
         self.is_closed = False  # EnvBase starts "closed"; open, ``__del__`` and collectors close it
+
+    @property
+    def time_limit(self) -> int:
+        """Control steps per episode (truncation after them)."""
+        return step_limit(self.dm_env)
 
     def _output(self, flags: tuple[bool, ...], reward: float | None) -> TensorDictBase:
         extra = {keys.PIXELS: torch.from_numpy(self.render())} if self.from_pixels else {}

@@ -38,7 +38,10 @@ def _to_plain(obj: Any) -> Any:
     """``obj`` with tensordicts, priority trees and numpy arrays as tagged plain dicts (numpy
     scalars as Python numbers)."""
     if isinstance(obj, TensorDictBase):
-        return {_TD: _to_plain(obj.to_dict()), "batch_size": list(obj.batch_size)}
+        # Entry by entry, not ``to_dict()``: a nested tensordict keeps its own batch size (an
+        # n-step transition's ``[n]`` window of steps).
+        entries = {k: _to_plain(v) for k, v in obj.items()}
+        return {_TD: entries, "batch_size": list(obj.batch_size)}
     if isinstance(obj, FlatPriorityTree):
         return {_TREE: obj.reduce, "values": obj.values}
     if isinstance(obj, np.ndarray):

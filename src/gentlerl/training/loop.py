@@ -70,14 +70,16 @@ class Trainer:
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = self.env_factory()
         self.builder = AgentBuilder(cfg, probe)
-        self.max_steps = int(getattr(probe, "time_limit", 1000))
+        self.max_steps = self.builder.horizon
         self.rewards = self.builder.make_intrinsic_rewards()
         check_env_keys(probe, self.rewards)
         probe.close()
         self.learner = self.builder.make_learner()
         col = cfg.collector
         updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
-        self.writer, self.rb, self.beta_schedule = self.builder.make_replay(updates)
+        self.writer, self.rb, self.beta_schedule = self.builder.make_replay(
+            updates, self.rewards.window_keys
+        )
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
         self.eval_history: list[dict[str, float]] = []
         self.best_eval: dict[str, float] | None = None
@@ -170,6 +172,7 @@ class Trainer:
         with timeit("update"):
             metrics = self.rewards.update(self.counters["updates"] + 1)
             batch = self.rb.sample()
+            metrics.update(self.rewards.refresh(batch, self.cfg.learner.gamma))
             out = self.learner.update(batch)
             self.rb.update_tensordict_priority(batch)
             if self.beta_schedule is not None:

@@ -143,6 +143,9 @@ class GentlenessConfig:
     # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
     dynamics_surprise_scale: float = _f(0.002, "extra factor on the dynamics surprise r^s")
     surprise_nll_floor: float | None = _f(0.0, "floor of the penalty-surprise NLL (null: eq. 8)")
+    recompute_surprise: bool = _f(
+        True, "recompute r^sp of each sampled n-step transition with the current target model"
+    )
     icm_eta: float = _f(1.0, "scale eta of the ICM reward")
 
 

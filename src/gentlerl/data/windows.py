@@ -1,0 +1,65 @@
+"""The steps behind each n-step transition, so that model-based rewards can be recomputed.
+
+``MultiStepTransform`` stores :math:`\\sum_{j<k} \\gamma^j r_{t+j}` and forgets the steps it summed.
+A reward computed from a learned model (penalty surprise, eq. 8) is then frozen at the model of
+the moment it was collected: a bonus for a contact the model has learned since never fades.
+:func:`nstep_windows` keeps, for every stored transition, the ``n`` raw steps of its window (the
+inputs the model needs), and :func:`nstep_return` sums a recomputed per-step reward over them
+exactly as ``MultiStepTransform`` summed the stored one.
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+
+#: Entry of a stored transition holding its window: a tensordict of batch ``[..., n]``.
+WINDOW = "window"
+
+
+def nstep_windows(steps: TensorDictBase, n_steps: int, count: int) -> TensorDictBase:
+    """The first ``count`` length-``n_steps`` windows along the last (time) dim of ``steps``.
+
+    Window ``i`` holds steps ``i .. i + n_steps - 1``: ``steps`` ``[..., T]`` gives
+    ``[..., count, n_steps]`` (``count <= T - n_steps + 1``). Which of a window's steps count is
+    :func:`nstep_return`'s business (the episode may end inside it).
+    """
+    *batch, time = steps.batch_size
+    if n_steps < 1 or not 0 <= count <= time - n_steps + 1:
+        raise ValueError(
+            f"need n_steps >= 1 and 0 <= count <= T - n_steps + 1, got n_steps={n_steps}, "
+            f"count={count}, T={time}"
+        )
+    dim = len(batch)
+
+    def unfold(x: torch.Tensor) -> torch.Tensor:
+        return x.unfold(dim, n_steps, 1).movedim(-1, dim + 1)[
+            (slice(None),) * dim + (slice(count),)
+        ]
+
+    return steps.apply(unfold, batch_size=[*batch, count, n_steps])
+
+
+def nstep_return(
+    rewards: torch.Tensor, steps_to_next_obs: torch.Tensor, gamma: float
+) -> torch.Tensor:
+    r"""The n-step return of per-step rewards over each window's first ``k`` steps.
+
+    .. math:: R_t = \sum_{j=0}^{k_t - 1} \gamma^j r_{t+j}
+
+    with :math:`k_t` = ``steps_to_next_obs`` (``MultiStepTransform``'s: ``n``, or fewer where the
+    episode ends inside the window).
+
+    Args:
+        rewards: ``[..., n, 1]`` per-step rewards of each window.
+        steps_to_next_obs: ``[...]`` or ``[..., 1]`` steps counted (``1 <= k <= n``).
+        gamma: the discount.
+
+    Returns:
+        ``[..., 1]``.
+    """
+    n = rewards.shape[-2]
+    j = torch.arange(n, device=rewards.device)
+    k = steps_to_next_obs.reshape(*rewards.shape[:-2], 1)
+    weights = torch.where(j < k, gamma ** j.to(rewards.dtype), torch.zeros((), dtype=rewards.dtype))
+    return (weights.unsqueeze(-1) * rewards).sum(-2)
