@@ -7,6 +7,10 @@ overhead inflates Python-heavy rows); the share of each row is what to read.
 
 Run: ``python benchmarks/profile_recipe.py [--frames 20000] [key=value ...]`` (config overrides,
 e.g. ``num_envs=4``); ``--out FILE`` keeps the raw profile for ``python -m pstats``.
+
+``--update [--compile]``: instead, ``torch.profiler``'s table (ops by self time, per update) of
+one full update at the recipe's sizes as ``learner_speed.py`` times it (``Learner.update`` +
+the penalty ensemble's update), on one thread.
 """
 
 from __future__ import annotations
@@ -61,18 +65,44 @@ def breakdown(stats: pstats.Stats, min_share: float = 0.003) -> list[tuple[str, 
     return rows
 
 
+def profile_update(compile: bool, updates: int = 50, rows: int = 25) -> None:
+    """Print the ops of one full update (learner_speed's recipe scale) by self CPU time."""
+    from learner_speed import make_full_update, make_scale  # the sibling benchmark script
+
+    step = make_full_update(make_scale("recipe"), "cpu", compile=compile)
+    for _ in range(20):
+        step()
+    with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CPU]) as prof:
+        for _ in range(updates):
+            step()
+    events = sorted(prof.key_averages(), key=lambda e: -e.self_cpu_time_total)
+    total = sum(e.self_cpu_time_total for e in events)
+    print(
+        f"learner.compile={compile}: {total / updates / 1e3:.2f} ms of ops per update, load "
+        f"average {os.getloadavg()[0]:.1f}\n\n| op | calls / update | us / update | share |"
+    )
+    print("| --- | ---: | ---: | ---: |")
+    for e in events[:rows]:
+        us = e.self_cpu_time_total / updates
+        print(f"| `{e.key[:60]}` | {e.count / updates:g} | {us:.0f} | {us * updates / total:.1%} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=20_000)
     parser.add_argument("--out", default=None, help="save the raw profile here")
+    parser.add_argument("--update", action="store_true", help="profile one learner update")
+    parser.add_argument("--compile", action="store_true", help="--update with learner.compile")
     parser.add_argument("overrides", nargs="*", help="config overrides group.field=value")
     args = parser.parse_args()
+    torch.set_num_threads(1)
+    if args.update:
+        return profile_update(args.compile)
     overrides: dict = {"collector": {"total_frames": args.frames}}
     overrides["logging"] = {"progress": False, "wandb_mode": "offline"}
     for name, value in (o.split("=", 1) for o in args.overrides):
         group, _, field = name.rpartition(".")
         (overrides.setdefault(group, {}) if group else overrides)[field] = yaml.safe_load(value)
-    torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as run_dir:
         cfg = make_config(run_dir=run_dir, **overrides)
         profiler = cProfile.Profile()

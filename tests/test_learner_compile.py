@@ -9,8 +9,8 @@ from gentlerl.agent.learner import Learner
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
 
-#: Eager vs compiled, per loss over 4 updates: inductor fuses and reorders float32 reductions.
-RTOL, ATOL = 1e-4, 1e-5
+#: Eager vs compiled over 4 updates (inductor fuses and reorders float32 sums); measured: <= 2.4e-7.
+RTOL, ATOL = 1e-5, 1e-6
 
 
 def _learner(**options) -> Learner:
