@@ -16,8 +16,8 @@ from pathlib import Path
 LOCK_FILE = ".lock"
 
 
-class RunLockedError(RuntimeError):
-    """The run directory is held by another live process; the message names it."""
+class RunLockedError(OSError):
+    """The run directory is held by another live process (busy); the message names it."""
 
 
 class RunLock:
