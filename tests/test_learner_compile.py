@@ -3,6 +3,7 @@
 import pytest
 import torch
 from tensordict import TensorDict
+from torch._dynamo.utils import counters
 
 import gentlerl.agent.learner as learner_module
 from gentlerl.agent.learner import Learner
@@ -42,6 +43,7 @@ def _batch(seed: int, n: int = 8) -> TensorDict:
 
 
 def test_compiled_update_gives_the_eager_losses_priorities_and_parameters():
+    counters.clear()
     eager, compiled = _learner(), _learner(compile=True)
     for seed in range(4):  # 4 updates: two target copies, Adam past its first step
         a, b = _batch(seed), _batch(seed)
@@ -53,6 +55,9 @@ def test_compiled_update_gives_the_eager_losses_priorities_and_parameters():
     torch.testing.assert_close(
         compiled.loss.state_dict(), eager.loss.state_dict(), rtol=RTOL, atol=ATOL
     )
+    # One graph: no host sync or data-dependent shape in the losses, projection or priorities.
+    assert not counters["graph_break"], dict(counters["graph_break"])
+    assert counters["stats"]["unique_graphs"] == 1
 
 
 def test_update_writes_priorities_and_leaves_the_rest_of_the_batch():
