@@ -165,6 +165,19 @@ def test_trainer_state_round_trip(tmp_path):
     assert tail.shape == (5,) and tail["next", "truncated"][:, 0].tolist() == [0, 0, 0, 0, 1]
 
 
+def test_a_checkpoint_keeps_its_critic_supports_and_refuses_others(tmp_path):
+    run = Trainer(tiny_config(tmp_path, total_frames=300), toy_env)
+    run.run()
+    state = load_checkpoint(tmp_path / "checkpoint.pt")
+    # toy env: 50 steps; dense heads span 1 x (1 - 0.99^50) / 0.01 = 39.5; the penalty tops at 0
+    assert state["supports"]["v_max"] == pytest.approx([10.0, 0.0, 39.4994], abs=1e-3)
+    assert state["supports"]["v_min"] == pytest.approx([-10.0, -39.4994, -39.4994], abs=1e-3)
+    resumed = Trainer(tiny_config(tmp_path, total_frames=300, resume=True), toy_env)
+    state["supports"]["v_min"][1] = -100.0  # weights trained on other atoms
+    with pytest.raises(ValueError, match=r"trained on supports .*dense_reward_bound"):
+        resumed.load_state_dict(state)
+
+
 def test_resume_to_a_longer_run_keeps_every_transition(tmp_path):
     straight = Trainer(tiny_config(tmp_path / "a", collector={"total_frames": 800}), toy_env)
     straight.run()

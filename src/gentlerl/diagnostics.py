@@ -53,6 +53,7 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     from gentlerl.envs import make_env
     from gentlerl.training.checkpoint import (
         POLICY_KEYS,
+        check_critic_supports,
         load_checkpoint,
         policy_frames,
         policy_from_state,
@@ -77,6 +78,7 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
         env = make_env(cfg.task, seed=cfg.seed, **cfg.env.kwargs)
         builder = AgentBuilder(cfg, env)
         learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()
+        check_critic_supports(state, learner.loss.value_network, ckpt)
         learner.loss.load_state_dict(state["learner"]["networks"])
         rewards.load_state_dict(state["intrinsic"])
     except (RuntimeError, KeyError, ValueError, TypeError) as err:

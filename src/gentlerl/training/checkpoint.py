@@ -165,6 +165,42 @@ def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any]) -> None:
         rb.storage.set(torch.arange(len(data)), data)  # allocates the full capacity
 
 
+def critic_supports(critic: torch.nn.Module) -> dict[str, list[float]]:
+    """Each head's ``v_min`` / ``v_max`` of a :class:`~gentlerl.models.FusedCritic` (or of the
+    ``TensorDictModule`` around it): the atoms its logits are read on, saved beside its weights."""
+    module = getattr(critic, "module", critic)
+    return {"v_min": [float(v) for v in module.v_min], "v_max": [float(v) for v in module.v_max]}
+
+
+def check_critic_supports(
+    state: dict[str, Any], critic: torch.nn.Module, path: str | os.PathLike
+) -> None:
+    """Refuse (``ValueError``, one line) critic weights that trained on other supports than the
+    ``critic`` built from the config: their logits would be read on the wrong atoms.
+
+    A checkpoint saved before supports were saved has no ``"supports"``; its config is read with
+    the behaviour of its time (:func:`~gentlerl.training.config.group_flat_config`).
+    """
+    saved = state.get("supports")
+    if saved is None:
+        return
+    now = critic_supports(critic)
+    same = all(
+        len(saved[k]) == len(now[k])
+        and all(
+            abs(a - b) <= 1e-6 * max(1.0, abs(a)) for a, b in zip(saved[k], now[k], strict=False)
+        )
+        for k in ("v_min", "v_max")
+    )
+    if not same:
+        raise ValueError(
+            f"{path}: its critics trained on supports v_min={saved['v_min']}, "
+            f"v_max={saved['v_max']}, but this config builds v_min={now['v_min']}, "
+            f"v_max={now['v_max']} (check network.v_min / v_max / dense_reward_bound and the "
+            "env's time_limit)"
+        )
+
+
 #: What :func:`load_policy` needs from a file: the run's config, the actor's sizes and weights.
 POLICY_KEYS = ("config", "obs_dim", "action_dim", "actor")
 

@@ -104,11 +104,12 @@ def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
     takes it: each flat field moved into the group that holds that name now.
 
     ``penalty_v_max`` (the penalty head's top, null for none) becomes ``network.bounded_support``
-    (null: false, else true). A grouped config comes back unchanged; a name no group holds stays
-    at the top level, where :func:`make_config` reports it.
+    (null: false, else true). A name no group holds stays at the top level, where
+    :func:`make_config` reports it. A field added since the config was saved and listed in
+    :data:`_BEFORE` gets the value that reproduces what that run trained (not today's default).
     """
     if all(isinstance(values.get(group), dict) for group in GROUPS):
-        return dict(values)
+        return _with_earlier_behaviour(values)
     owner = {f.name: (g, f.name) for g, cls in GROUPS.items() for f in dataclasses.fields(cls)}
     owner.update(_RENAMED)
     grouped: dict[str, Any] = {}
@@ -120,7 +121,21 @@ def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
             grouped.setdefault(group, {})[field] = value
         else:
             grouped[name] = value
-    return grouped
+    return _with_earlier_behaviour(grouped)
+
+
+#: Fields whose default changed the method, with the value that configs saved before them ran.
+_BEFORE = {
+    ("network", "dense_reward_bound"): None,  # one shared [v_min, v_max] for every head
+    ("gentleness", "recompute_surprise"): False,  # r^sp stored at collection
+}
+
+
+def _with_earlier_behaviour(grouped: dict[str, Any]) -> dict[str, Any]:
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in grouped.items()}
+    for (group, name), value in _BEFORE.items():
+        out.setdefault(group, {}).setdefault(name, value)
+    return out
 
 
 _POSITIVE = (

@@ -32,6 +32,8 @@ from gentlerl.training.builders import (
     make_eval_env,
 )
 from gentlerl.training.checkpoint import (
+    check_critic_supports,
+    critic_supports,
     load_replay_buffer_state,
     remove_stale_temp_files,
     replay_buffer_state,
@@ -264,6 +266,7 @@ class Trainer:
         return {
             **self._policy_state(),
             "learner": dataclasses.asdict(self.learner.state),
+            "supports": critic_supports(self.learner.loss.value_network),
             "intrinsic": self.rewards.state_dict(),
             "rb": replay_buffer_state(self.rb) if keep else None,
             "nstep": self.writer.state_dict() if keep else None,
@@ -276,6 +279,7 @@ class Trainer:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        check_critic_supports(state, self.learner.loss.value_network, self.ckpt)
         self.learner.restore(TrainingState(**state["learner"]))
         self.rewards.load_state_dict(state["intrinsic"])
         if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
