@@ -614,3 +614,42 @@ def test_a_point_interrupted_before_its_first_checkpoint_resumes(tmp_path):
     args = [path, "--out", str(tmp_path / "out"), *sum((["--set", o] for o in TINY), [])]
     assert sweep(args) == 0
     assert (run / "DONE").exists() and (run / "checkpoint.pt").exists()
+
+
+# --- the gentlerl command: one line per refusal, the traceback only when asked ----------------
+
+
+def test_a_refusal_is_one_line_on_stderr_and_exit_1(tmp_path, capsys, monkeypatch):
+    from gentlerl.cli import main
+
+    monkeypatch.setenv("GENTLERL_DEBUG", "0")  # restored afterwards, also after --debug sets it
+    assert main(["evaluate", str(tmp_path / "none.pt")]) == 1
+    err = capsys.readouterr().err
+    assert err == f"gentlerl evaluate: error: no checkpoint at {tmp_path / 'none.pt'}\n"
+    with pytest.raises(FileNotFoundError):
+        main(["evaluate", str(tmp_path / "none.pt"), "--debug"])
+    monkeypatch.setenv("GENTLERL_DEBUG", "1")
+    with pytest.raises(FileNotFoundError):
+        main(["plot", str(tmp_path / "none")])
+
+
+def test_an_unexpected_error_names_its_type_and_the_debug_switch():
+    from gentlerl.cli import one_line
+
+    assert one_line(ValueError("invalid:\n  - a\n  - b")) == "invalid: a; b"
+    assert one_line(KeyError("x")) == "KeyError: 'x' (GENTLERL_DEBUG=1 shows the traceback)"
+
+
+def test_train_refuses_unknown_fields_in_one_line(monkeypatch):
+    from gentlerl.cli import main
+
+    with pytest.raises(SystemExit, match=r"unknown config field\(s\) \['foo', 'network.bogus'\]"):
+        main(["train", "foo=1", "network.bogus=2", "seed=1", "+env.kwargs.calibration=easy"])
+
+
+def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypatch):
+    from gentlerl.video import main as video
+
+    monkeypatch.setenv("MUJOCO_GL", "disable")  # what gentlerl.envs sets when none can load
+    with pytest.raises(SystemExit, match="MUJOCO_GL=egl.*apt-get install libosmesa6"):
+        video([str(tmp_path / "none.pt"), "-o", str(tmp_path / "v.mp4")])

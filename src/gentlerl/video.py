@@ -12,8 +12,13 @@ with the ``imageio-ffmpeg`` package (a dependency, it ships its own ffmpeg), ``.
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Sequence
 from pathlib import Path
+
+# gentlerl.envs first: it picks the OpenGL backend before torchrl imports MuJoCo, whose import
+# crashes on a backend that cannot load (MUJOCO_GL=osmesa without libOSMesa).
+from gentlerl.envs import HandEnv, make_env  # isort: split
 
 import numpy as np
 import torch
@@ -22,8 +27,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
 from gentlerl.cli import command_parser
-from gentlerl.envs import HandEnv, make_env
 from gentlerl.envs.assets import FINGERTIPS
+from gentlerl.envs.rendering import INSTALL_HINT
 from gentlerl.functional import impact
 from gentlerl.outputs import check_output_file
 
@@ -197,6 +202,8 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
     if not 0 <= args.seed < 2**32:
         raise SystemExit(f"--seed must be in [0, 2**32), got {args.seed}")
     check_output_file(args.out, VIDEO_SUFFIXES)  # before the rendering, not after
+    if os.environ.get("MUJOCO_GL") == "disable":  # set so by gentlerl.envs: no backend loads
+        raise SystemExit(f"{prog}: no OpenGL backend to render with: {INSTALL_HINT}")
     cfg, actor = load_policy(args.checkpoint)
     env = make_env(cfg.task, seed=args.seed, **cfg.env.kwargs)
     try:
