@@ -653,3 +653,16 @@ def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypa
     monkeypatch.setenv("MUJOCO_GL", "disable")  # what gentlerl.envs sets when none can load
     with pytest.raises(SystemExit, match="MUJOCO_GL=egl.*apt-get install libosmesa6"):
         video([str(tmp_path / "none.pt"), "-o", str(tmp_path / "v.mp4")])
+
+
+def test_a_ctrl_c_masked_by_a_library_error_still_reads_as_interrupted():
+    from gentlerl.cli import interrupted
+
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise RuntimeError("Converting a tensordict to boolean value is not permitted")  # noqa: B904
+    except RuntimeError as err:
+        masked = err
+    assert interrupted(masked) and not interrupted(RuntimeError("a real bug"))

@@ -80,6 +80,19 @@ def one_line(err: BaseException) -> str:
     return f"{type(err).__name__}: {message} ({DEBUG_ENV}=1 shows the traceback)"
 
 
+def interrupted(err: BaseException) -> bool:
+    """Whether ``err`` is, or was raised while handling, a Ctrl-C (a ``KeyboardInterrupt`` that
+    struck inside library code can surface as another error: it must still read as one)."""
+    seen: set[int] = set()
+    current: BaseException | None = err
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``gentlerl`` console script; returns the exit status.
 
@@ -98,14 +111,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             run_train(rest)
             return 0
         status = importlib.import_module(module).main(rest, prog=f"gentlerl {args.command}")
-    except KeyboardInterrupt:
+    except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - each failure is one line
         if debugging():
             raise
-        print(f"gentlerl {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except Exception as err:  # noqa: BLE001 - every failure of a command is one line
-        if debugging():
-            raise
+        if interrupted(err):
+            print(f"gentlerl {args.command}: interrupted", file=sys.stderr)
+            return 130
         print(f"gentlerl {args.command}: error: {one_line(err)}", file=sys.stderr)
         return 1
     return status if isinstance(status, int) else 0  # some mains return their results

@@ -115,7 +115,7 @@ def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
 def _app(cfg: DictConfig) -> dict[str, float]:
     from hydra.core.hydra_config import HydraConfig
 
-    from gentlerl.cli import debugging, one_line
+    from gentlerl.cli import debugging, interrupted, one_line
     from gentlerl.distributed import ClusterError
 
     try:
@@ -125,6 +125,8 @@ def _app(cfg: DictConfig) -> dict[str, float]:
     except Exception as err:  # noqa: BLE001 - a refusal is one line; GENTLERL_DEBUG=1: traceback
         if debugging():
             raise
+        if interrupted(err):  # Ctrl-C that surfaced as another error inside a library
+            raise KeyboardInterrupt from None
         raise SystemExit(f"gentlerl train: error: {one_line(err)}") from None
     print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
     return summary
