@@ -666,3 +666,19 @@ def test_a_ctrl_c_masked_by_a_library_error_still_reads_as_interrupted():
     except RuntimeError as err:
         masked = err
     assert interrupted(masked) and not interrupted(RuntimeError("a real bug"))
+
+
+@pytest.mark.parametrize(
+    ("parameters", "match"),
+    [
+        ("seed: {values: [0, -1]}", r"grid point seed--1: seed=-1 must be in \[0, 2\*\*32\)"),
+        ("seed: {values: [4294967296]}", r"seed=4294967296 must be in \[0, 2\*\*32\)"),
+        ("variant: {values: [bogus]}", "variant='bogus' is not one of"),
+        ("gentleness.lam_prime: {values: [[2]]}", "gentleness.lam_prime=.* must have 2 values"),
+    ],
+)
+def test_every_sweep_point_is_validated_before_any_runs(tmp_path, parameters, match):
+    path = _sweep_file(tmp_path, f"parameters:\n  {parameters}\n")
+    with pytest.raises(SystemExit, match=match) as err:
+        sweep([path, "--out", str(tmp_path / "out")])
+    assert "\n" not in str(err.value.code) and not (tmp_path / "out").exists()

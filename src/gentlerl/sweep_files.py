@@ -108,3 +108,43 @@ def check_set(items: Sequence[str]) -> None:
         if not sep:
             raise ValueError(f"--set {item!r}: expected FIELD=VALUE")
         check_key(key, f"--set {item!r}")
+
+
+def point_problem(
+    point: Sequence[tuple[str, Any]], extra: Sequence[str], scale: str | None
+) -> str | None:
+    """Why the config of a grid ``point`` (with the ``--set`` overrides ``extra``) is invalid, in
+    one line, or ``None`` (also when an ``extra`` value is beyond what YAML reads as hydra would:
+    the trainer then judges it)."""
+    from gentlerl.training.config import make_config
+
+    overrides: dict[str, Any] = {}
+    for key, value in [*point, *_parsed(extra)]:
+        *groups, name = key.lstrip("+").split(".")
+        target = overrides
+        for group in groups:
+            target = target.setdefault(group, {})
+        target[name] = value
+    if any(value is _UNPARSED for _, value in _parsed(extra)):
+        return None
+    try:
+        make_config(overrides.pop("scale", scale or "cpu"), **overrides)
+    except (ValueError, TypeError) as err:
+        lines = [line.strip().removeprefix("- ") for line in str(err).splitlines()]
+        return "; ".join(line for line in lines[1:] if line) or lines[0]
+    return None
+
+
+_UNPARSED = object()
+
+
+def _parsed(extra: Sequence[str]) -> list[tuple[str, Any]]:
+    """``--set`` items as ``(key, value)``, each value read as YAML (``_UNPARSED`` if it is not)."""
+    items = []
+    for item in extra:
+        key, _, text = item.partition("=")
+        try:
+            items.append((key, yaml.safe_load(text)))
+        except yaml.YAMLError:
+            items.append((key, _UNPARSED))
+    return items

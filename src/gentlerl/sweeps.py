@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from gentlerl.cli import command_parser
-from gentlerl.sweep_files import check_set, load_sweep
+from gentlerl.sweep_files import check_set, load_sweep, point_problem
 from gentlerl.training.loop import DONE_MARKER
 
 
@@ -254,6 +254,10 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
         runs = expand(restrict(load_sweep(args.sweep), args.only), root)
     except (ValueError, OSError) as err:
         raise SystemExit(f"{prog}: {err}") from None
+    for run in runs:  # every point's config, before any point runs
+        problem = point_problem(run.overrides, args.set, args.scale)
+        if problem:
+            raise SystemExit(f"{prog}: grid point {run.run_dir.name}: {problem}")
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
     handlers = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
