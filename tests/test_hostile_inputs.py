@@ -682,3 +682,16 @@ def test_every_sweep_point_is_validated_before_any_runs(tmp_path, parameters, ma
     with pytest.raises(SystemExit, match=match) as err:
         sweep([path, "--out", str(tmp_path / "out")])
     assert "\n" not in str(err.value.code) and not (tmp_path / "out").exists()
+
+
+def test_export_cannot_be_steered_outside_out_by_a_policy_config(tmp_path):
+    from gentlerl.export import main as export
+    from gentlerl.training.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+
+    path = _policy_file(tmp_path, [16], [16])
+    state = load_checkpoint(path)
+    state["config"]["variant"] = "../../../escaped"
+    save_checkpoint(tmp_path / "checkpoint.pt", state)
+    with pytest.raises(CheckpointError, match="variant='../../../escaped' is not one of"):
+        export([str(tmp_path / "checkpoint.pt"), "--out", str(tmp_path / "out")])
+    assert not list(tmp_path.parent.glob("escaped*")) and not (tmp_path / "out").exists()
