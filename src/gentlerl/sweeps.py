@@ -4,9 +4,11 @@
 
 Each grid point becomes one ``python -m gentlerl.training.cli key=value ...`` process with a
 deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resumable: a run whose
-``DONE`` marker exists is skipped, one with a checkpoint is continued (``resume=true``). Grid points
-that differ only in ``lam_prime`` for a variant without penalty surprise are run once (the
-parameter does not affect them). The same files work with ``wandb sweep`` / ``wandb agent``.
+``DONE`` marker exists is skipped, the others run with ``resume=auto`` (continued from their
+checkpoint, or started again if interrupted before their first). Grid points that differ only in
+``lam_prime`` for a variant without penalty surprise are run once (the parameter does not affect
+them). Keys and values are checked before anything runs (:mod:`gentlerl.sweep_files`), and each
+point's config is validated; an interrupted sweep kills its trainers' process groups. The same files work with ``wandb sweep`` / ``wandb agent``.
 ``--backend ray`` runs each grid point as a Ray task instead, on a local Ray or a cluster
 (:mod:`gentlerl.distributed.sweeps`, docs/DISTRIBUTED.md).
 """
