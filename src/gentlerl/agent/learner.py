@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -30,7 +30,7 @@ class TrainingState:
     target_counter: int
 
 
-Step = Callable[[TensorDictBase], TensorDict]
+Step = TypeVar("Step", bound=Callable[..., Any])
 
 
 def compile_step(
@@ -70,16 +70,18 @@ class Learner:
 
     The gradient step (losses, backward, one fused Adam step over both parameter groups) is a
     pure function of the batch's loss inputs: it returns the losses and the per-sample priorities
-    and leaves the batch alone, so it can be compiled (``compile``, TorchRL's sota pattern) and
-    captured in a CUDA graph (``cudagraphs``, with ``tensordict.nn.CudaGraphModule``). The
-    priorities are written into the batch, and the target copy made, outside that step.
+    and leaves the batch alone, so its losses can be compiled (``compile``, TorchRL's sota
+    pattern) and the whole step captured in a CUDA graph (``cudagraphs``, with
+    ``tensordict.nn.CudaGraphModule``). The priorities are written into the batch, and the target
+    copy made, outside that step.
 
     Args:
         loss: the multi-head D4PG loss (it holds the actor, the critics and their targets).
         lr_actor, lr_critic: Adam step sizes of the two parameter groups.
         target_update_period: updates between hard target copies (Acme: 100).
-        compile: ``torch.compile`` the gradient step (seconds to minutes on the first updates).
-        cudagraphs: capture the (compiled) step in a CUDA graph; CUDA only, its Adam capturable.
+        compile: ``torch.compile`` the losses and their backward (the first update compiles them:
+            seconds to minutes).
+        cudagraphs: replay the whole step as a CUDA graph (its Adam capturable); CUDA only.
     """
 
     def __init__(
