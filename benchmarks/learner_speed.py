@@ -24,7 +24,7 @@ a 2048^2 float32 matmul on the same threads / device. ``--compile`` times the up
 (``git archive``, eager, its model Adam as ``IntrinsicRewards`` had it there), this tree eager and
 this tree compiled. Each runs in its own process, set up and warmed up (compiled) first; then
 ``--rounds`` rounds give each process one ``--min-time`` block in turn, so all three see the same
-machine load; a ratio is the median of the per-round ratios to ``REV``.
+machine load (``side_by_side.py``); a ratio is the median of the per-round ratios to ``REV``.
 """
 
 from __future__ import annotations
@@ -32,15 +32,13 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import statistics
-import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import side_by_side
 import torch
 from tensordict import TensorDict
 from torch import nn
@@ -188,48 +186,18 @@ def serve(args: argparse.Namespace) -> None:
 
 def compare(args: argparse.Namespace) -> None:
     """Before (``--compare REV``) vs this tree, eager and compiled, in alternating rounds."""
-    script, root = Path(__file__).resolve(), Path(__file__).resolve().parents[1]
-    common = [f"--scale={args.scale}", f"--threads={args.threads}", f"--device={args.device}"]
-    common.append(f"--min-time={args.min_time}")
-    with tempfile.TemporaryDirectory() as old:
-        archive = subprocess.run(
-            ["git", "-C", str(root), "archive", args.compare, "src"],
-            check=True,
-            capture_output=True,
-        )
-        subprocess.run(["tar", "-x", "-C", old], input=archive.stdout, check=True)
+    common = ["--serve", f"--scale={args.scale}", f"--threads={args.threads}"]
+    common += [f"--device={args.device}", f"--min-time={args.min_time}"]
+    here = str(side_by_side.ROOT / "src")
+    with side_by_side.revision_src(args.compare) as old:
         runs = {
-            f"before ({args.compare}), eager": ([f"--serve-rev={args.compare}"], f"{old}/src"),
-            "after, eager": ([], str(root / "src")),
-            "after, learner.compile": (["--compile"], str(root / "src")),
+            f"before ({args.compare}), eager": ([*common, f"--serve-rev={args.compare}"], old),
+            "after, eager": (common, here),
+            "after, learner.compile": ([*common, "--compile"], here),
         }
-        workers = {}
-        for name, (extra, path) in runs.items():
-            env = {**os.environ, "PYTHONPATH": path}
-            cmd = [sys.executable, str(script), "--serve", *common, *extra]
-            workers[name] = subprocess.Popen(cmd, env=env, text=True, stdin=-1, stdout=-1)
-            start = time.perf_counter()
-            if workers[name].stdout.readline().strip() != "ready":
-                raise RuntimeError(f"{name}: the worker did not start")
-            print(f"{name}: set up and warmed up in {time.perf_counter() - start:.0f} s")
-        rates: dict[str, list[float]] = {name: [] for name in workers}
-        for _ in range(args.rounds):
-            for name, worker in workers.items():
-                worker.stdin.write("go\n")
-                worker.stdin.flush()
-                rates[name].append(float(worker.stdout.readline()))
-        for worker in workers.values():
-            worker.stdin.close()
-            worker.wait()
-    base = rates[next(iter(rates))]
+        rates = side_by_side.run_rounds(Path(__file__).resolve(), runs, args.rounds)
     print(f"\n{args.rounds} rounds of {args.min_time} s, load average {os.getloadavg()[0]:.1f}")
-    print("\n| full update | updates/s (median) | ms | x before (median of rounds) | rounds |")
-    print("| --- | ---: | ---: | ---: | --- |")
-    for name, r in rates.items():
-        ratio = statistics.median(a / b for a, b in zip(r, base, strict=True))
-        ups = statistics.median(r)
-        rounds = ", ".join(f"{x:.1f}" for x in r)
-        print(f"| {name} | {ups:.1f} | {1e3 / ups:.2f} | {ratio:.2f}x | {rounds} |")
+    side_by_side.print_table(rates, "full update", "updates/s")
 
 
 def _loop_critics(scale: Scale, device: str) -> nn.ModuleList:
