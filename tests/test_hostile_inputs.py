@@ -576,30 +576,34 @@ def _alive(pid: int) -> bool:
 
 def test_an_interrupted_sweep_kills_its_trainers_process_groups(tmp_path):
     import dataclasses
+    import signal
     import time
 
-    from gentlerl.sweeps import expand, run_grid, stop_trainers
+    from gentlerl.sweeps import expand, run_grid
 
     script = tmp_path / "spawning.py"
     script.write_text(SPAWNING_RECIPE)
-    runs = [dataclasses.replace(r, script=script) for r in expand({"seed": [0]}, tmp_path / "g")]
-    sweep_thread = threading.Thread(target=run_grid, args=(runs,), daemon=True)
-    sweep_thread.start()
+    grid = expand({"seed": [0, 1]}, tmp_path / "g")
+    runs = [dataclasses.replace(r, script=script) for r in grid]
     pids = runs[0].run_dir / "pids"
-    for _ in range(200):
-        if pids.exists() and pids.read_text().endswith("\n"):
-            break
-        time.sleep(0.05)
+
+    def ctrl_c_once_the_trainer_runs() -> None:
+        for _ in range(400):
+            if pids.exists() and pids.read_text().endswith("\n"):
+                break
+            time.sleep(0.05)
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C: KeyboardInterrupt in the main thread
+
+    threading.Thread(target=ctrl_c_once_the_trainer_runs, daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        run_grid(runs, workers=1)
     grandchild = int(pids.read_text())
-    assert _alive(grandchild)
-    stop_trainers()  # what run_grid does when the sweep is interrupted or sent SIGTERM
-    sweep_thread.join(30)
-    assert not sweep_thread.is_alive()
     for _ in range(100):
         if not _alive(grandchild):
             break
         time.sleep(0.05)
-    assert not _alive(grandchild)
+    assert not _alive(grandchild)  # the trainer's own child too: its whole group
+    assert not (runs[1].run_dir / "stdout.log").exists()  # the queued point never started
 
 
 def test_a_point_interrupted_before_its_first_checkpoint_resumes(tmp_path):

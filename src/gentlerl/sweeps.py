@@ -117,11 +117,13 @@ def run_grid(
     trainer still running, so no orphaned trainer keeps writing its run directory."""
     todo = pending(runs)
     counts = {"skipped": len(runs) - len(todo), "done": 0, "failed": 0, "planned": 0}
+    _STOPPING.clear()
     with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
         try:
             for code in pool.map(lambda run: run_point(run, extra, dry_run), todo):
                 counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
         except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)  # no queued point starts
             stop_trainers()
             raise
     return counts
@@ -156,13 +158,19 @@ def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) ->
 #: Trainers running now (their process groups are killed when the sweep is interrupted).
 _LIVE: set[subprocess.Popen] = set()
 _LIVE_LOCK = threading.Lock()
+#: Set by :func:`stop_trainers`: a point about to start does not.
+_STOPPING = threading.Event()
 
 
 def _call(command: list[str], log: IO[str]) -> int:
     """Run ``command`` in its own process group (its collector workers with it); the group is
     killed if this call is interrupted (Ctrl-C, a cancelled Ray task)."""
-    proc = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     with _LIVE_LOCK:
+        if _STOPPING.is_set():
+            return -signal.SIGTERM
+        proc = subprocess.Popen(
+            command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
+        )
         _LIVE.add(proc)
     try:
         return proc.wait()
@@ -187,6 +195,7 @@ def _kill_group(proc: subprocess.Popen) -> None:
 def stop_trainers() -> None:
     """Kill the process group of every trainer this sweep still runs."""
     with _LIVE_LOCK:
+        _STOPPING.set()
         live = list(_LIVE)
     for proc in live:
         _kill_group(proc)
