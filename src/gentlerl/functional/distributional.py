@@ -46,6 +46,8 @@ def categorical_projection(
             ``next_probs.shape[:-1]``.
         v_min: lowest atom of the support: a float, or a tensor broadcastable to
             ``next_probs.shape[:-1]`` for a support per distribution (e.g. one per critic head).
+            Float bounds are checked (finite, ``v_min < v_max``); tensor bounds are the caller's
+            to check (see :func:`_check_float_support`).
         v_max: highest atom of the support, same shapes as ``v_min``.
 
     Returns:
