@@ -83,6 +83,7 @@ def test_sweep_values_cannot_leave_out(tmp_path, value):
 @pytest.mark.parametrize(
     ("body", "match"),
     [
+        (f"parameters: {{variant: {{values: [{'r' * 300}]}}}}\n", "longer than 255 bytes"),
         ("", "expected a mapping"),
         ("- a\n- b\n", "expected a mapping"),
         ("parameters: [1, 2]\n", "must be a mapping"),

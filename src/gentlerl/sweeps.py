@@ -83,6 +83,8 @@ def _inside(out: Path, name: str) -> Path:
     run_dir = out / name
     if "/" in name or os.sep in name or run_dir.resolve().parent != out.resolve():
         raise ValueError(f"grid point folder {name!r} would not be directly under {out}")
+    if len(name.encode()) > 255:
+        raise ValueError(f"grid point folder {name[:60]!r}... is longer than 255 bytes")
     return run_dir
 
 
