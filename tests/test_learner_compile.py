@@ -2,10 +2,10 @@
 
 import pytest
 import torch
+import torch._inductor.config
 from tensordict import TensorDict
 from torch._dynamo.utils import counters
 
-import gentlerl.agent.learner as learner_module
 from gentlerl.agent.learner import Learner
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
@@ -76,7 +76,10 @@ def test_cudagraphs_on_cpu_is_a_one_line_error():
 
 
 def test_compile_falls_back_to_eager_with_the_reason(monkeypatch):
-    monkeypatch.setattr(learner_module, "compile_unavailable", lambda: "no C++ compiler")
-    with pytest.warns(UserWarning, match="no C.. compiler; the learner runs eagerly"):
+    monkeypatch.setattr(torch._inductor.config.cpp, "cxx", ("/nonexistent/g++",))
+    with pytest.warns(
+        UserWarning, match="no C.. compiler for inductor .* the learner runs eagerly"
+    ):
         learner = _learner(compile=True)
     learner.update(_batch(0))
+    assert learner._losses == learner._losses_and_priorities  # the eager bound method

@@ -59,8 +59,12 @@ def compile_unavailable() -> str | None:
     if not torch._dynamo.is_dynamo_supported():
         return "torch.compile does not support this Python / platform"
     try:
-        torch._inductor.cpp_builder.get_cpp_compiler()
-    except Exception as err:  # inductor's own check raises InvalidCxxCompiler (or ImportError)
+        from torch._inductor import cpp_builder
+    except ImportError as err:
+        return f"torch's inductor backend does not import ({err})"
+    try:
+        cpp_builder.get_cpp_compiler()
+    except Exception as err:  # inductor's own check raises its InvalidCxxCompiler
         return f"no C++ compiler for inductor ({type(err).__name__})"
     return None
 
