@@ -21,10 +21,11 @@ a 2048^2 float32 matmul on the same threads / device. ``--compile`` times the up
 ``learner.compile`` on.
 
 ``--compare REV`` times the full update side by side in one run: the code at git revision ``REV``
-(``git archive``, eager, its model Adam as ``IntrinsicRewards`` had it there), this tree eager and
-this tree compiled. Each runs in its own process, set up and warmed up (compiled) first; then
-``--rounds`` rounds give each process one ``--min-time`` block in turn, so all three see the same
-machine load (``side_by_side.py``); a ratio is the median of the per-round ratios to ``REV``.
+(``git archive``, eager, the ensemble's Adam unfused as in ``IntrinsicRewards`` before 77fb784),
+this tree eager and this tree compiled. Each runs in its own process, set up and warmed up
+(compiled) first; then ``--rounds`` rounds give each process one ``--min-time`` block in turn, so
+all three see the same machine load (``side_by_side.py``); a ratio is the median of the
+per-round ratios to ``REV``.
 """
 
 from __future__ import annotations
