@@ -14,7 +14,7 @@ import torch
 from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
-from torchrl.envs import EnvBase
+from torchrl.envs import CatTensors, EnvBase
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
@@ -45,13 +45,24 @@ def episode_steps(env: EnvBase, default: int = 1000) -> int:
     return default if limit is None else int(limit)
 
 
+def observation_sources(env: EnvBase) -> list[str]:
+    """The entries a ``CatTensors`` of ``env`` concatenates into ``observation`` (as
+    :func:`gentlerl.envs.external.adapt_env` appends it), else ``[]``."""
+    transform = getattr(env, "transform", None)
+    for t in transform if transform is not None else ():
+        if isinstance(t, CatTensors) and list(t.out_keys) == [keys.OBSERVATION]:
+            return [str(k) for k in t.in_keys]
+    return []
+
+
 class AgentBuilder:
     """Makes the agent of ``cfg`` for ``env``, whose specs give every size.
 
     Attributes:
         obs_dim, action_dim: sizes of ``observation`` and ``action``.
-        feature_shapes: shape of each of the dynamics model's feature groups (joint positions,
-            velocities, touch) that the env writes.
+        feature_shapes: shape of each of the dynamics model's feature groups that the env
+            writes: the hand's joint positions, velocities and touch; else the entries an
+            external env's ``observation`` concatenates (finger: position, velocity, touch).
         reward_keys: the variant's reward components, in critic-head order.
     """
 
@@ -61,9 +72,11 @@ class AgentBuilder:
         batch_dims = len(env.batch_size)
         self.obs_dim = spec[keys.OBSERVATION].shape[-1]
         self.action_dim = env.action_spec.shape[-1]
-        self.feature_shapes = {
-            k: tuple(spec[k].shape[batch_dims:]) for k in keys.DYNAMICS_FEATURES if k in spec.keys()
-        }
+        # The hand's feature groups; an external env's: the entries of its observation.
+        features = [k for k in keys.DYNAMICS_FEATURES if k in spec.keys()]
+        if keys.JOINT_POS not in features:
+            features = observation_sources(env) or features
+        self.feature_shapes = {k: tuple(spec[k].shape[batch_dims:]) for k in features}
         self.reward_keys = reward_keys(cfg.variant)
         #: Steps per episode (the env's ``time_limit``, else 1000): the dense heads' horizon.
         self.horizon = episode_steps(env)
@@ -97,6 +110,7 @@ class AgentBuilder:
             action_dim=self.action_dim,
             feature_shapes=self.feature_shapes,
             seed=self.cfg.seed,
+            force_key=self.cfg.env.force,
         )
 
     def make_learner(self) -> Learner:

@@ -37,9 +37,11 @@ class IntrinsicRewards:
         losses: model name -> its loss (``{}`` without learned rewards).
         buffer: the models' 1-step transitions (``None`` without learned rewards).
 
-    Works on any env with ``observation``, ``action`` and a force entry ``force_key`` shaped
+    Works on any env with an observation entry ``obs_key`` (``[..., obs_dim]``, default
+    ``observation``), ``action`` and a force entry ``force_key`` shaped
     ``[..., n_sites, n_channels]`` (the hand's ``touch``, ``[5, 3]``); ``feature_shapes`` names the
     entries the dynamics model predicts (used by the variants with dynamics surprise only).
+    :meth:`check_keys` says which of them a tensordict lacks.
     """
 
     def __init__(
@@ -52,10 +54,12 @@ class IntrinsicRewards:
         feature_shapes: Mapping[str, Sequence[int]],
         seed: int = 0,
         force_key: str = keys.TOUCH,
+        obs_key: str = keys.OBSERVATION,
     ) -> None:
         self.reward_keys = reward_keys(variant)
         self.settings = settings
-        ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed)
+        self.obs_key, self.force_key = obs_key, force_key
+        ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key)
         # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
         transforms: list = [ImpactPenalty(settings.lam, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}
@@ -74,7 +78,7 @@ class IntrinsicRewards:
                 self._updaters[component.model] = HardUpdate(
                     part.loss, value_network_update_interval=interval
                 )
-        self.transform = Compose(*transforms)
+        self.transform = _Rewards(*transforms, obs_key=obs_key, force_key=force_key)
         self.optimizers = {
             # fused: one kernel per step instead of ~10 per parameter tensor
             name: torch.optim.Adam(loss.parameters(), lr=settings.lr_model, fused=True)
@@ -83,6 +87,11 @@ class IntrinsicRewards:
         self.buffer: ReplayBuffer | None = (
             make_model_buffer(settings.model_buffer_size) if self.losses else None
         )
+
+    def check_keys(self, tensordict: TensorDictBase) -> None:
+        """A ``KeyError`` naming what the reward transforms read and ``tensordict`` lacks (what
+        :attr:`transform` raises on a batch without them)."""
+        self.transform.check_keys(tensordict)
 
     @property
     def gated_transforms(self) -> list[ModelRewardTransform]:
@@ -197,3 +206,35 @@ class IntrinsicRewards:
             t.active.fill_(bool(state["active"]))
         for name, counter in state["target_counters"].items():
             self._updaters[name].counter = counter
+
+
+class _Rewards(Compose):
+    """The reward transforms; applied to a batch, first checks that it holds what they read."""
+
+    def __init__(self, *transforms, obs_key: str, force_key: str) -> None:
+        super().__init__(*transforms)
+        self.obs_key, self.force_key = obs_key, force_key
+
+    def check_keys(self, tensordict: TensorDictBase) -> None:
+        """A ``KeyError`` naming the entries that ``tensordict`` lacks: the force (at the root and
+        under ``"next"``) and, for learned rewards, the observation (both) and the action."""
+        wanted = {self.force_key: "force_key"}
+        if any(isinstance(t, ModelRewardTransform) for t in self):  # the models read s_t, a_t
+            wanted = {self.obs_key: "obs_key", keys.ACTION: "action", **wanted}
+        present = set(tensordict.keys(True))
+        missing = [
+            f"{where!r} ({name})"
+            for key, name in wanted.items()
+            for where in ((key,) if key == keys.ACTION else (key, ("next", key)))
+            if where not in present
+        ]
+        if missing:
+            raise KeyError(
+                f"IntrinsicRewards reads {', '.join(missing)}, which the tensordict lacks; it has "
+                f"{sorted(map(str, tensordict.keys()))} (pass obs_key= / force_key= to name the "
+                "env's entries)"
+            )
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        self.check_keys(tensordict)
+        return super().forward(tensordict)

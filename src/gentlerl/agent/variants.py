@@ -32,13 +32,15 @@ if TYPE_CHECKING:
 
 @dataclass
 class Ingredients:
-    """What a component's builder may use: the env's sizes, the gentleness settings, a seed."""
+    """What a component's builder may use: the env's sizes, the gentleness settings, a seed, and
+    the observation entry the models read."""
 
     obs_dim: int
     action_dim: int
     feature_shapes: Mapping[str, Sequence[int]]
     settings: GentlenessConfig
     seed: int
+    obs_key: str = keys.OBSERVATION
 
 
 @dataclass
@@ -88,6 +90,7 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
         ing.settings.ensemble_size,
         _hidden(ing),
         seed=ing.seed,
+        obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="dynamics")
     scale = ing.settings.surprise_scale * ing.settings.dynamics_surprise_scale
@@ -98,7 +101,12 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
 def _penalty_surprise(ing: Ingredients) -> Part:
     s = ing.settings
     model = PenaltyModel(
-        ing.obs_dim, ing.action_dim, s.ensemble_size, _hidden(ing), seed=ing.seed + 1
+        ing.obs_dim,
+        ing.action_dim,
+        s.ensemble_size,
+        _hidden(ing),
+        seed=ing.seed + 1,
+        obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="penalty")
     transform = PenaltySurprise(
@@ -114,7 +122,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
 def _icm_reward(ing: Ingredients) -> Part:
     with torch.random.fork_rng():
         torch.manual_seed(ing.seed + 2)
-        model = ICMModel(ing.obs_dim, ing.action_dim)
+        model = ICMModel(ing.obs_dim, ing.action_dim, obs_key=ing.obs_key)
     loss = ICMLoss(model)
     return Part(ICMReward(model, loss.model_params, eta=ing.settings.icm_eta), loss)
 

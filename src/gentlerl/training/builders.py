@@ -33,7 +33,22 @@ AGENT_KEYS = (
 
 
 def default_env_factory(cfg: TrainConfig) -> EnvFactory:
-    """``gentlerl.envs.make_env`` for ``cfg.task`` with ``cfg.env.kwargs``, seeded with ``cfg.seed``."""
+    """``gentlerl.envs.make_env`` for ``cfg.task`` with ``cfg.env.kwargs``, seeded with ``cfg.seed``;
+    with ``cfg.env.name`` the external env it names
+    (:func:`~gentlerl.envs.external.make_external_env`, ``env.kwargs`` to its constructor)."""
+    if cfg.env.name is not None:
+        from gentlerl.envs.external import make_external_env
+
+        env = cfg.env
+        return partial(
+            make_external_env,
+            env.name,
+            seed=cfg.seed,
+            force_adapter=env.force_adapter,
+            force_key=env.force,
+            observation_keys=env.observation_keys,
+            **env.kwargs,
+        )
     from gentlerl.envs import make_env
 
     return partial(make_env, cfg.task, seed=cfg.seed, **cfg.env.kwargs)
@@ -92,14 +107,16 @@ def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> Env
 
 
 #: What the loop reads from every env step besides the variant's reward components.
-REQUIRED_ENV_KEYS = (keys.OBSERVATION, keys.SUCCESS, keys.BROKEN)
+REQUIRED_ENV_KEYS = (keys.OBSERVATION,)
+#: What the loop reads where the env writes it: without them an episode is judged by its return.
+OPTIONAL_ENV_KEYS = (keys.SUCCESS, keys.BROKEN)
 
 
 def check_env_keys(env: EnvBase, rewards: IntrinsicRewards) -> None:
     """One clear error if env + reward transforms do not produce what the run reads.
 
     That is :data:`REQUIRED_ENV_KEYS`, ``impact`` (``ImpactPenalty``, logged for every variant)
-    and every reward component of the variant.
+    and every reward component of the variant (:data:`OPTIONAL_ENV_KEYS` may be absent).
     """
     try:
         transformed = TransformedEnv(env, rewards.transform.clone(), auto_unwrap=False)
@@ -167,12 +184,16 @@ def make_collector(
     return MultiSyncCollector(factories, policy, cat_results="stack", **common)
 
 
-def make_eval_env(env_factory: EnvFactory, seed: int, episodes: int = 1) -> EnvBase:
-    """The evaluation env (writes ``impact``): ``episodes`` hands stepped together where the
-    factory builds batched envs (all episodes of an evaluation in one rollout), else one."""
+def make_eval_env(
+    env_factory: EnvFactory, seed: int, episodes: int = 1, force_key: str = keys.TOUCH
+) -> EnvBase:
+    """The evaluation env (writes ``impact`` from ``force_key``): ``episodes`` hands stepped
+    together where the factory builds batched envs (all episodes of an evaluation in one
+    rollout), else one."""
     batched = episodes > 1 and takes_num_envs(env_factory)
     env = TransformedEnv(
-        env_factory(num_envs=episodes) if batched else env_factory(), ImpactPenalty()
+        env_factory(num_envs=episodes) if batched else env_factory(),
+        ImpactPenalty(in_keys=[force_key]),
     )
     env.set_seed(seed)
     return env

@@ -208,6 +208,7 @@ def validate(cfg: TrainConfig) -> None:
             f"collector.num_envs={col.num_envs}"
         )
     problems += _ray_problems(col)
+    problems += _env_problems(cfg.env)
     replay = cfg.replay
     if not 0.0 <= replay.alpha <= 1.0 or not 0.0 <= replay.beta <= 1.0:
         problems.append(f"replay.alpha={replay.alpha} and beta={replay.beta} must be in [0, 1]")
@@ -242,4 +243,25 @@ def _ray_problems(col: CollectorConfig) -> list[str]:
             parse_address(col.ray_address)
         except ValueError as err:
             problems.append(str(err))
+    return problems
+
+
+def _env_problems(env: EnvConfig) -> list[str]:
+    """``env.name`` (a known external env), ``env.force_adapter`` (a known adapter, only with an
+    external env) and ``env.observation_keys`` (only with an external env)."""
+    from gentlerl.envs.external import FORCE_ADAPTERS, check_name
+
+    if env.name is None:
+        return [
+            f"env.{name}={getattr(env, name)!r} applies to an external env only (set env.name)"
+            for name in ("force_adapter", "observation_keys")
+            if getattr(env, name) is not None
+        ]
+    problems = check_name(env.name)
+    if env.force_adapter is not None and env.force_adapter not in FORCE_ADAPTERS:
+        problems.append(
+            f"env.force_adapter={env.force_adapter!r} is not one of {sorted(FORCE_ADAPTERS)}"
+        )
+    if env.observation_keys is not None and not env.observation_keys:
+        problems.append("env.observation_keys=[] must name at least one entry (or null: all)")
     return problems

@@ -85,7 +85,7 @@ def consistency_problems(cfg: Any) -> list[str]:
             f"replay.buffer_size={replay.buffer_size} must be >= replay.batch_size="
             f"{replay.batch_size} (no update could ever sample a batch)"
         )
-    if cfg.task in TASKS:
+    if cfg.task in TASKS and cfg.env.name is None:  # else kwargs go to the external env
         valid = env_kwarg_names(cfg.task)
         unknown = sorted(set(cfg.env.kwargs) - set(valid))
         if unknown:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
@@ -49,13 +51,20 @@ def rollout_episodes(
     return out[:episodes]
 
 
+def _any(nxt: TensorDictBase, key: str) -> float:
+    """1.0 / 0.0 whether ``key`` was set at some step; NaN where the env does not write it."""
+    value = nxt.get(key, None)
+    return math.nan if value is None else float(value.any())
+
+
 def episode_stats(episode: TensorDictBase) -> dict[str, float]:
-    """``success``, ``broken`` (0/1), ``max_impact`` (N, eq. 1) and the task ``return`` of one
-    ``[T]`` episode of :func:`rollout_episodes` (the env must write ``impact``)."""
+    """``success``, ``broken`` (0/1; NaN where the env has no such outcome), ``max_impact`` (N,
+    eq. 1) and the task ``return`` of one ``[T]`` episode of :func:`rollout_episodes` (the env
+    must write ``impact``)."""
     nxt = episode.get("next")
     return {
-        "success": float(nxt.get(keys.SUCCESS).any()),
-        "broken": float(nxt.get(keys.BROKEN).any()),
+        "success": _any(nxt, keys.SUCCESS),
+        "broken": _any(nxt, keys.BROKEN),
         "max_impact": float(nxt.get(keys.IMPACT).max()),
         "return": float(nxt.get(keys.REWARD).sum()),
     }
@@ -91,5 +100,13 @@ def evaluate(
 
 def rank(result: dict[str, float]) -> tuple[float, float, float]:
     """Order of evaluations: higher success rate, then lower broken rate, then lower mean max
-    impact (the gentler of two equally successful policies)."""
+    impact (the gentler of two equally successful policies). An env without success (NaN
+    rates) is judged by its return: higher return, then lower mean max impact."""
+    if math.isnan(result["success_rate"]):
+        broken = result["broken_rate"]
+        return (
+            result["return"],
+            0.0 if math.isnan(broken) else -broken,
+            -result["max_impact_mean"],
+        )
     return (result["success_rate"], -result["broken_rate"], -result["max_impact_mean"])

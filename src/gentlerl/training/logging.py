@@ -8,6 +8,7 @@ under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames collec
 from __future__ import annotations
 
 import csv
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -100,12 +101,18 @@ class RunLogger:
                     [
                         frames,
                         i,
-                        int(ep["success"]),
-                        int(ep["broken"]),
+                        outcome(ep["success"]),
+                        outcome(ep["broken"]),
                         ep["max_impact"],
                         ep["return"],
                     ]
                 )
+
+
+def outcome(value: float) -> int | str:
+    """A 0/1 outcome as a CSV cell: ``nan`` where the env has no such outcome (an external env
+    without ``success`` / ``broken``), which ``numpy.genfromtxt`` reads back as NaN."""
+    return "nan" if math.isnan(value) else int(value)
 
 
 #: What :func:`episode_transforms` write (at the root and under ``"next"``); read, then dropped.
@@ -151,11 +158,13 @@ class EpisodeStats:
         nxt, traj = batch.get("next").reshape(-1), traj.reshape(-1)
         done = nxt.get(keys.DONE).reshape(-1)
         sums = {f"return_{k}": nxt.get(k).reshape(-1) for k in self.summed}
+        # success / broken only where the env has them (an external env may not)
         maxima = {
-            "success": nxt.get(keys.SUCCESS).reshape(-1).float(),
-            "broken": nxt.get(keys.BROKEN).reshape(-1).float(),
-            "max_impact": nxt.get(keys.IMPACT).reshape(len(nxt), -1).amax(-1),
+            key: nxt.get(key).reshape(-1).float()
+            for key in (keys.SUCCESS, keys.BROKEN)
+            if key in nxt.keys()
         }
+        maxima["max_impact"] = nxt.get(keys.IMPACT).reshape(len(nxt), -1).amax(-1)
         if keys.WATCHDOG in nxt.keys():
             maxima["watchdog"] = nxt.get(keys.WATCHDOG).reshape(-1).float()
         finished = []

@@ -102,7 +102,9 @@ class Trainer:
         log = cfg.logging
         logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project, log.logger)
         logger.truncate_after(self.counters["frames"])
-        eval_env = make_eval_env(self.env_factory, cfg.seed + 10_000, log.eval_episodes)
+        eval_env = make_eval_env(
+            self.env_factory, cfg.seed + 10_000, log.eval_episodes, cfg.env.force
+        )
         if cfg.collector.total_frames > self.counters["frames"]:
             self._collect(logger, eval_env)
         last = self.eval_history[-1] if self.eval_history else {"frames": -1}
@@ -215,9 +217,12 @@ class Trainer:
         def mean(name: str) -> float:
             return float(np.mean([e[name] for e in recent])) if recent else 0.0
 
-        last = self.eval_history[-1]["success_rate"] if self.eval_history else None
+        # Without success in the env (an external env), the bar shows the returns instead.
+        judged = "success" if not recent or "success" in recent[-1] else "return_reward"
+        metric = "success_rate" if judged == "success" else "return"
+        last = self.eval_history[-1][metric] if self.eval_history else None
         return {  # the speed is tqdm's own frame/s: one speed on the bar
-            "success": f"{mean('success'):.2f}",
+            judged.removeprefix("return_"): f"{mean(judged):.2f}",
             "max_impact": f"{mean('max_impact'):.2f}N",
             "eval": "-" if last is None else f"{last:.2f}",
         }
@@ -306,8 +311,10 @@ def _crossed(frames: int, batch_frames: int, every: int) -> bool:
 def train(cfg: TrainConfig, env_factory: EnvFactory | None = None) -> dict[str, float]:
     """Train (or, with ``cfg.resume``, continue) a run; returns the final evaluation summary.
 
-    ``env_factory`` builds the env (default: :func:`gentlerl.envs.make_env` for ``cfg.task``); it
-    must write ``observation``, ``success`` and ``broken`` and the force key of ``ImpactPenalty``.
+    ``env_factory`` builds the env (default: :func:`gentlerl.envs.make_env` for ``cfg.task``, or
+    the external env ``cfg.env.name``); it must write ``observation`` and the force key
+    ``cfg.env.force`` of ``ImpactPenalty``, and may write ``success`` and ``broken`` (without
+    them, evaluations are ranked by their return).
     """
     validate(cfg)  # before the lock: a refused config creates nothing
     with RunLock(cfg.run_dir):  # one writer per run directory

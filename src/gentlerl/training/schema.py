@@ -46,6 +46,31 @@ def _f(default: Any, help: str, choices: Callable[[], list[str]] | tuple | None 
 @dataclass
 class EnvConfig:
     kwargs: dict[str, Any] = _f({}, "keyword arguments of make_env, e.g. {time_limit: 100}")
+    name: str | None = _f(
+        None,
+        "null: gentlerl's hand, task `task`; else a TorchRL env, 'dm_control:<domain>-<task>' "
+        "(e.g. dm_control:finger-spin; kwargs then go to DMControlEnv)",
+    )
+    force_adapter: str | None = _f(
+        None,
+        "transforms bringing an external env's contact reading to force_key in N, "
+        "[n_sites, n_channels] (null: the source's, dm_control_touch for dm_control; "
+        "names: gentlerl.envs.external.FORCE_ADAPTERS)",
+    )
+    force_key: str | None = _f(
+        None, "the force entry the gentleness rewards read (null: touch for the hand, else force)"
+    )
+    observation_keys: tuple[str, ...] | None = _f(
+        None, "external env: entries concatenated into observation (null: all but pixels)"
+    )
+
+    @property
+    def force(self) -> str:
+        """The force entry the rewards read: ``force_key``, else the hand's ``touch`` or the
+        external env's adapted ``force``."""
+        if self.force_key is not None:
+            return self.force_key
+        return "touch" if self.name is None else "force"
 
 
 #: Hands per collector env when ``collector.num_envs`` is null and the env factory batches: 4 hands
