@@ -31,7 +31,8 @@ SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", 
 def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
     """Success and broken rates and median / p90 max impact (N) of evaluation episodes.
 
-    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1) and ``max_impact``, as
+    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1, NaN for an env without
+    them: its rates are NaN), ``max_impact`` and ``return`` (``mean_return``), as
     :func:`gentlerl.training.evaluation.evaluate` returns them.
     """
     if not episodes:
@@ -43,6 +44,7 @@ def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
         "broken_rate": float(np.mean([e["broken"] for e in episodes])),
         "median_max_impact": float(np.median(impact)),
         "p90_max_impact": float(np.percentile(impact, 90)),
+        "mean_return": float(np.mean([e.get("return", np.nan) for e in episodes])),
     }
 
 
@@ -60,7 +62,7 @@ def evaluate_policy(
     ``task`` / ``calibration``: ``None`` keeps the run's own. ``episodes_csv``: also write the
     episodes there (:func:`write_episodes`). Returns ``task`` and the :func:`summarize` numbers.
     """
-    from gentlerl.training.builders import make_eval_env
+    from gentlerl.training.builders import default_env_factory, make_eval_env
     from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
     from gentlerl.training.evaluation import evaluate
 
@@ -77,7 +79,13 @@ def evaluate_policy(
     env_kwargs = dict(cfg.env.kwargs)
     if calibration is not None:
         env_kwargs["calibration"] = calibration
-    env = make_eval_env(partial(make_env, task or cfg.task, **env_kwargs), seed)
+    if cfg.env.name is not None:  # an external env (env.name): the run's own, seeded here
+        if task is not None or calibration is not None:
+            raise ValueError(f"--task / --calibration apply to the hand, not to {cfg.env.name}")
+        env_factory = partial(default_env_factory(cfg), seed=seed)
+    else:
+        env_factory = partial(make_env, task or cfg.task, **env_kwargs)
+    env = make_eval_env(env_factory, seed, force_key=cfg.env.force)
     torch.manual_seed(seed)
     try:
         # The env's own time limit (200 steps by default) ends every episode before this cap.
@@ -86,7 +94,7 @@ def evaluate_policy(
         env.close()
     if episodes_csv is not None:
         write_episodes(episodes_csv, policy_frames(state), per_episode)
-    return {"task": task or cfg.task, **summarize(per_episode)}
+    return {"task": task or cfg.env.name or cfg.task, **summarize(per_episode)}
 
 
 def write_episodes(
@@ -94,7 +102,7 @@ def write_episodes(
 ) -> Path:
     """One CSV row per episode with a run's ``eval_episodes.csv`` columns, written atomically;
     ``frames``: the frames the policy trained for (-1 if unknown)."""
-    from gentlerl.training.logging import EVAL_COLUMNS
+    from gentlerl.training.logging import EVAL_COLUMNS, outcome
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -103,7 +111,7 @@ def write_episodes(
         writer = csv.writer(f)
         writer.writerow(EVAL_COLUMNS)
         for i, ep in enumerate(episodes):
-            row = (int(ep["success"]), int(ep["broken"]), ep["max_impact"], ep["return"])
+            row = (outcome(ep["success"]), outcome(ep["broken"]), ep["max_impact"], ep["return"])
             writer.writerow([-1 if frames is None else frames, i, *row])
     tmp.replace(path)
     return path
@@ -140,7 +148,7 @@ def main(
             f"{args.policy} on {result['task']}, {result['episodes']} episodes (seed {args.seed}):\n"
             f"  success {result['success_rate']:.2f}  broken {result['broken_rate']:.2f}  "
             f"max impact median {result['median_max_impact']:.2f} N, "
-            f"p90 {result['p90_max_impact']:.2f} N"
+            f"p90 {result['p90_max_impact']:.2f} N, return {result['mean_return']:.1f}"
         )
     return result
 

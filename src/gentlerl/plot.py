@@ -55,8 +55,13 @@ class Run:
         return self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
 
     @property
+    def task(self) -> str | None:
+        """The hand's task, or the external env a run trained on (``env.name``)."""
+        return self.setting("env", "name") or self.config.get("task")
+
+    @property
     def group(self) -> tuple:
-        return (self.config.get("task"), self.label)
+        return (self.task, self.label)
 
 
 def _read_series(path: Path) -> Series:
