@@ -46,6 +46,7 @@ CONFIG = dict(
         v_min=-10.0,
         v_max=10.0,
         bounded_support=True,  # the penalty head's support tops at 0
+        dense_reward_bound=None,  # one shared [v_min, v_max] for every head
     ),
     gentleness=dict(
         lam=(2.0, 2.0),
@@ -61,6 +62,7 @@ CONFIG = dict(
         surprise_scale=1.0,
         dynamics_surprise_scale=1.0,
         surprise_nll_floor=0.0,
+        recompute_surprise=False,
         icm_eta=1.0,
     ),
     logging=dict(
