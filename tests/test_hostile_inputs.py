@@ -639,7 +639,7 @@ def test_a_refusal_is_one_line_on_stderr_and_exit_1(tmp_path, capsys, monkeypatc
 
 
 def test_an_unexpected_error_names_its_type_and_the_debug_switch():
-    from gentlerl.cli import one_line
+    from gentlerl.errors import one_line
 
     assert one_line(ValueError("invalid:\n  - a\n  - b")) == "invalid: a; b"
     assert one_line(KeyError("x")) == "KeyError: 'x' (GENTLERL_DEBUG=1 shows the traceback)"
@@ -661,7 +661,7 @@ def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypa
 
 
 def test_a_ctrl_c_masked_by_a_library_error_still_reads_as_interrupted():
-    from gentlerl.cli import interrupted
+    from gentlerl.errors import interrupted
 
     try:
         try:
