@@ -17,6 +17,7 @@ from torchrl.data import Bounded, Composite, Unbounded
 from torchrl.envs import EnvBase
 from torchrl.envs.utils import check_env_specs
 
+import gentlerl.envs  # noqa: F401  (the GL backend is chosen before a block imports dm_control)
 from gentlerl import cli, keys
 from gentlerl.functional import impact, impact_penalty
 from gentlerl.training.config import iter_fields
@@ -70,7 +71,8 @@ class PressEnv(EnvBase):
 def test_the_readme_has_python_blocks_and_no_hand_specific_names_in_them():
     blocks = code_blocks("python")
     assert blocks, "README.md has no ```python block"
-    assert all('"touch"' not in block for block in blocks)
+    # dm_control's finger names its own sensors "touch"; no other block names the hand's
+    assert all('"touch"' not in block for block in blocks if "DMControlEnv" not in block)
 
 
 @pytest.mark.parametrize("index", range(len(code_blocks("python"))))
@@ -83,7 +85,7 @@ def test_readme_python_block_runs_verbatim_on_a_non_hand_env(index):
             force, next_force = value[FORCE], value["next", FORCE]
             expected = impact_penalty(impact(force, next_force), 2.0, 2.0).unsqueeze(-1)
             torch.testing.assert_close(value["next", keys.PENALTY], expected, msg=name)
-            assert value["next", keys.IMPACT].shape == (*value.shape, SITES)
+            assert value["next", keys.IMPACT].shape == value[FORCE].shape[:-1]
     if "rewards" in namespace:  # the variant block: 20 updates, past its reward delay of 10
         assert namespace["rewards"].intrinsic_on
         batch = namespace["batch"]
@@ -131,3 +133,26 @@ def test_readme_gentlerl_commands_name_real_subcommands_options_and_config_field
         if build_parser is not None and command[2:]:  # argparse commands: every option exists
             _, unknown = build_parser().parse_known_args(command[2:])
             assert not unknown, command
+
+
+def test_readme_finger_block_builds_a_float32_env_with_force_in_newtons():
+    """The second example, on the real ``DMControlEnv("finger", "spin")``: specs pass, every
+    float entry is float32, force = expm1(touch) as [2 sites, 1 channel], and the flat
+    observation is position, velocity, touch."""
+    (block,) = [b for b in code_blocks("python") if "DMControlEnv" in b]
+    torch.manual_seed(0)
+    namespace: dict = {}
+    exec(compile(block, "README.md finger block", "exec"), namespace)
+    finger, rollout = namespace["finger"], namespace["rollout"]
+    check_env_specs(finger)
+    assert finger.observation_spec[FORCE].shape == (2, 1)
+    assert rollout.shape == (300,) and rollout["next", keys.IMPACT].shape == (300, 2)
+    floats = [v for v in rollout.values(True, True) if v.is_floating_point()]
+    assert all(v.dtype == torch.float32 for v in floats)
+    torch.testing.assert_close(
+        rollout["next", FORCE][..., 0], torch.expm1(rollout["next", "touch"])
+    )
+    obs = torch.cat([rollout["position"], rollout["velocity"], rollout["touch"]], -1)
+    torch.testing.assert_close(rollout[keys.OBSERVATION], obs)
+    expected = impact_penalty(impact(rollout[FORCE], rollout["next", FORCE]), 2.0, 2.0)
+    torch.testing.assert_close(rollout["next", keys.PENALTY], expected.unsqueeze(-1))

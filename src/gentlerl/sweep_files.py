@@ -18,7 +18,7 @@ __all__ = ["check_key", "check_set", "check_value", "load_sweep", "sweepable_fie
 
 #: What a string in a sweep may hold: a name or a number, never a path separator, a hydra
 #: interpolation (``${...}``), a list or another override (``,`` ``=`` ``[`` spaces, quotes).
-_SAFE_STRING = re.compile(r"[A-Za-z0-9_.+-]+")
+_SAFE_STRING = re.compile(r"[A-Za-z0-9_.:+-]+")
 #: Fields the runner sets itself for each grid point.
 _RUNNER_FIELDS = ("run_dir", "resume")
 
@@ -57,7 +57,7 @@ def check_value(key: str, value: Any, where: str) -> None:
         if not _SAFE_STRING.fullmatch(value) or value in (".", ".."):
             raise ValueError(
                 f"{where}: {key}={value!r}: a string value may hold only letters, digits and "
-                "'_.+-' (no '/', '$', ',', '=', spaces, quotes or brackets)"
+                "'_.:+-' (no '/', '$', ',', '=', spaces, quotes or brackets)"
             )
     elif not (value is None or isinstance(value, bool | int | float)):
         raise ValueError(f"{where}: {key}={value!r}: expected a number, a name or a list of them")
