@@ -15,6 +15,11 @@ from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.envs.external import FORCE_ADAPTERS, adapt_env, make_external_env
+from gentlerl.evaluate import evaluate_policy
+from gentlerl.models import make_actor
+from gentlerl.plot import find_runs
+from gentlerl.summary import summary_table
+from gentlerl.training import save_checkpoint
 from gentlerl.training.builders import default_env_factory
 from gentlerl.training.config import GentlenessConfig, make_config
 from gentlerl.training.evaluation import rank, summarize_episodes
@@ -194,3 +199,18 @@ def test_the_loop_trains_on_an_external_env_without_success(tmp_path):
     rows = (tmp_path / "run" / "eval_episodes.csv").read_text().splitlines()
     assert rows[1].split(",")[2:4] == ["nan", "nan"] and len(rows) == 1 + 2 * 2
     assert (tmp_path / "run" / "best_policy.pt").is_file()
+    (row,) = summary_table(find_runs([tmp_path]))  # gentlerl plot's table: judged by return
+    assert math.isnan(row["final_success"]) and row["final_median_impact"] == pytest.approx(3.0)
+    assert row["final_return"] == pytest.approx(summary["return"])
+
+
+def test_evaluate_runs_a_finger_policy_on_its_own_env(tmp_path):
+    cfg = make_config(env={"name": "dm_control:finger-spin"}, network={"actor_hidden": (8,)})
+    actor = make_actor(9, 2, cfg.network.actor_hidden)
+    state = {"config": cfg.to_dict(), "obs_dim": 9, "action_dim": 2, "actor": actor.state_dict()}
+    save_checkpoint(tmp_path / "policy.pt", state)
+    out = evaluate_policy(tmp_path / "policy.pt", 1, episodes_csv=tmp_path / "episodes.csv")
+    assert out["task"] == "dm_control:finger-spin" and math.isnan(out["success_rate"])
+    assert out["episodes"] == 1 and out["mean_return"] >= 0.0  # finger-spin pays 0 or 1 a step
+    row = (tmp_path / "episodes.csv").read_text().splitlines()[1].split(",")
+    assert row[2:4] == ["nan", "nan"]

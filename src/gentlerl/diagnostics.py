@@ -104,7 +104,7 @@ def critic_calibration(
     """
     from gentlerl.envs import make_env
     from gentlerl.models import make_exploration_policy
-    from gentlerl.training.builders import make_eval_env
+    from gentlerl.training.builders import default_env_factory, make_eval_env
     from gentlerl.training.critic_calibration import measure_calibration
     from gentlerl.training.evaluation import rollout_episodes
 
@@ -118,7 +118,11 @@ def critic_calibration(
         "deterministic": actor,
         "noisy": make_exploration_policy(actor, cfg.collector.sigma),
     }
-    env = make_eval_env(partial(make_env, cfg.task, **cfg.env.kwargs), seed, episodes)
+    if cfg.env.name is not None:  # an external env: the run's own (seeded by make_eval_env)
+        env_factory = default_env_factory(cfg)
+    else:
+        env_factory = partial(make_env, cfg.task, **cfg.env.kwargs)
+    env = make_eval_env(env_factory, seed, episodes, cfg.env.force)
     report: dict[str, Any] = {
         "checkpoint": str(_checkpoint_path(path)),
         "task": cfg.task,

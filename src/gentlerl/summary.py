@@ -5,6 +5,9 @@ numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
   says which episodes: ``evaluate`` = the 20 episodes of ``python -m gentlerl.evaluate``,
   ``in-loop`` = the run's last in-loop evaluation, ``none``). ``final_successful_*``: max impact
   of its *successful* rollouts (paper Fig. 5, :func:`gentlerl.plot.successful_final_impacts`).
+  ``final_return``, ``final_median_impact``, ``final_p90_impact``: mean task return and max
+  impact (N) of every final-policy episode, what an env without success (an external env such as
+  dm_control's finger) is judged by.
 - ``*after_switch``: training rollouts after the intrinsic rewards switch on (paper Fig. 3,
   :func:`gentlerl.plot.after_intrinsic_start`); impact columns over the touching ones (max impact
   > 0), in N.
@@ -62,6 +65,19 @@ def final_policy_columns(group: Sequence[Run]) -> dict[str, object]:
         "final_successful": len(successful),
         "final_successful_median_impact": _median(successful),
         "final_successful_p90_impact": _p90(successful),
+        **_all_final_columns(episodes),
+    }
+
+
+def _all_final_columns(episodes: Sequence[np.ndarray]) -> dict[str, float]:
+    # numpy.genfromtxt renames the column "return", a python keyword, to "return_"
+    rows = [r for r in episodes if len(r) and "return_" in (r.dtype.names or ())]
+    impacts = np.concatenate([r["max_impact"] for r in rows]) if rows else np.zeros(0)
+    returns = np.concatenate([r["return_"] for r in rows]) if rows else np.zeros(0)
+    return {
+        "final_return": float(returns.mean()) if len(returns) else NAN,
+        "final_median_impact": _median(impacts),
+        "final_p90_impact": _p90(impacts),
     }
 
 

@@ -205,6 +205,8 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
     if os.environ.get("MUJOCO_GL") == "disable":  # set so by gentlerl.envs: no backend loads
         raise SystemExit(f"{prog}: no OpenGL backend to render with: {INSTALL_HINT}")
     cfg, actor = load_policy(args.checkpoint)
+    if cfg.env.name is not None:  # the painter colours the hand's fingertips
+        raise SystemExit(f"{prog}: videos show gentlerl's hand; this run trained on {cfg.env.name}")
     env = make_env(cfg.task, seed=args.seed, **cfg.env.kwargs)
     try:
         frames = record_rollouts(env, actor, args.episodes, args.size, panel=not args.no_panel)
