@@ -6,6 +6,7 @@ import math
 
 import pytest
 import torch
+from hydra import compose, initialize
 from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import Compose, DoubleToFloat, EnvBase, TransformedEnv
@@ -21,6 +22,7 @@ from gentlerl.plot import find_runs
 from gentlerl.summary import summary_table
 from gentlerl.training import save_checkpoint
 from gentlerl.training.builders import default_env_factory
+from gentlerl.training.cli import config_from_hydra, register_configs
 from gentlerl.training.config import GentlenessConfig, make_config
 from gentlerl.training.evaluation import rank, summarize_episodes
 from gentlerl.training.logging import EpisodeStats
@@ -164,6 +166,15 @@ def test_config_names_the_external_env_and_validates_its_fields():
         make_config(env={"name": "finger-spin"})
     with pytest.raises(ValueError, match="applies to an external env only"):
         make_config(env={"force_adapter": "dm_control_touch"})
+
+
+def test_the_train_command_line_names_the_finger_env():
+    register_configs()
+    overrides = ["env.name=dm_control:finger-spin", "env.observation_keys=[position,velocity]"]
+    with initialize(version_base="1.3", config_path=None):
+        cfg = config_from_hydra(compose("gentlerl_train", overrides=overrides))
+    assert cfg.env.name == "dm_control:finger-spin" and cfg.env.force_adapter is None
+    assert default_env_factory(cfg)().observation_spec[keys.OBSERVATION].shape == (7,)  # 4 + 3
 
 
 def test_evaluations_without_success_are_judged_by_their_return():
