@@ -78,7 +78,8 @@ def test_finger_spin_env_is_float32_with_force_in_newtons_and_a_flat_observation
     spec = env.observation_spec
     assert spec[keys.OBSERVATION].shape == (9,)  # position 4 + velocity 3 + touch 2
     assert spec["force"].shape == (2, 1) and env.time_limit == 1000
-    td = env.rollout(300)  # seed 0, random actions: the finger strikes the spinner by step 300
+    torch.manual_seed(1)  # random actions (torch's generator): this one strikes the spinner
+    td = env.rollout(300)
     assert td[keys.OBSERVATION].dtype == td["force"].dtype == torch.float32
     torch.testing.assert_close(
         td[keys.OBSERVATION], torch.cat([td["position"], td["velocity"], td["touch"]], -1)
@@ -147,6 +148,18 @@ def test_intrinsic_rewards_read_an_observation_key_that_is_not_observation():
     assert (surprise[penalty < 0] != 0).all() and (surprise[penalty == 0] == 0).all()  # eq. 8
     rewards.extend(out)
     assert set(rewards.update(2)) == {"model_penalty"}  # the model trains on "state"
+
+
+def test_the_force_penalty_variant_reads_the_configured_force_key():
+    env = adapt_env(ScriptedTouchEnv())
+    rewards = IntrinsicRewards("r+rf+rsp+rF", GentlenessConfig(), obs_dim=4, action_dim=2,
+                               feature_shapes={}, force_key="force")  # fmt: skip
+    out = rewards.transform(env.rollout(3))
+    # r^F = -sum_i (1 - sigmoid(2 (8 - F_i))) F_i over the next readings [3, 1], [3, 4], [0, 0]
+    total = torch.tensor([[3.0, 1.0], [3.0, 4.0], [0.0, 0.0]])
+    expected = -((1 - torch.sigmoid(2 * (8 - total))) * total).sum(-1, keepdim=True)
+    torch.testing.assert_close(out["next", keys.FORCE_PENALTY], expected)
+    assert out["next", keys.FORCE_PENALTY][1].item() == pytest.approx(-1.478e-3, rel=1e-3)
 
 
 def test_config_names_the_external_env_and_validates_its_fields():

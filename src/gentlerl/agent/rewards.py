@@ -59,7 +59,7 @@ class IntrinsicRewards:
         self.reward_keys = reward_keys(variant)
         self.settings = settings
         self.obs_key, self.force_key = obs_key, force_key
-        ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key)
+        ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key, force_key)
         # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
         transforms: list = [ImpactPenalty(settings.lam, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 @dataclass
 class Ingredients:
     """What a component's builder may use: the env's sizes, the gentleness settings, a seed, and
-    the observation entry the models read."""
+    the observation and force entries the transforms read."""
 
     obs_dim: int
     action_dim: int
@@ -41,6 +41,7 @@ class Ingredients:
     settings: GentlenessConfig
     seed: int
     obs_key: str = keys.OBSERVATION
+    force_key: str = keys.TOUCH
 
 
 @dataclass
@@ -135,7 +136,9 @@ COMPONENTS: dict[str, Component] = {
     keys.PENALTY_SURPRISE: Component(_penalty_surprise, intrinsic=True, model="penalty"),
     keys.ICM_REWARD: Component(_icm_reward, intrinsic=True, model="icm"),
     # Beyond the paper (its future work on wear): total fingertip force and actuator effort.
-    keys.FORCE_PENALTY: Component(lambda ing: Part(ForcePenalty()), upper_bound=0.0),
+    keys.FORCE_PENALTY: Component(
+        lambda ing: Part(ForcePenalty(in_keys=[ing.force_key])), upper_bound=0.0
+    ),
     keys.TORQUE_PENALTY: Component(lambda ing: Part(TorquePenalty()), upper_bound=0.0),
 }
 
