@@ -22,8 +22,15 @@ from omegaconf import DictConfig, OmegaConf
 
 from gentlerl.training.config import SCALES, TrainConfig, get, iter_fields, make_config
 
-#: Where a run goes unless ``run_dir=...`` is given.
-RUN_DIR = "runs/${task}/${variant}/seed${seed}"
+#: Where a run goes unless ``run_dir=...`` is given (an external env's runs under its task name).
+RUN_DIR = "runs/${gentlerl_run_name:${task},${env.name}}/${variant}/seed${seed}"
+
+
+def run_name(task: str, env_name: str | None) -> str:
+    """The first folder of a run's default directory: the hand's ``task``, or the task of an
+    external env (``env.name=dm_control:finger-spin`` -> ``finger-spin``)."""
+    return task if env_name is None else env_name.rpartition(":")[2]
+
 
 HELP = """gentlerl-train: train a gentle-manipulation agent (Huang et al. 2019) with TorchRL.
 
@@ -65,6 +72,7 @@ def _help_template() -> str:
 
 def register_configs() -> None:
     """Store the schema, the scale presets, the help page and the primary config."""
+    OmegaConf.register_new_resolver("gentlerl_run_name", run_name, replace=True)
     cs = ConfigStore.instance()
     cs.store(name="train_schema", node=TrainConfig)
     for name, preset in SCALES.items():
@@ -81,7 +89,7 @@ def register_configs() -> None:
     ]
     hydra_settings = {
         "run": {"dir": "${run_dir}"},
-        "sweep": {"dir": "runs", "subdir": "${task}/${variant}/seed${seed}"},
+        "sweep": {"dir": "runs", "subdir": RUN_DIR.removeprefix("runs/")},
         "output_subdir": None,
         "job": {"chdir": False},
     }
