@@ -187,6 +187,7 @@ def test_the_train_command_line_names_the_finger_env():
     with initialize(version_base="1.3", config_path=None):
         cfg = config_from_hydra(compose("gentlerl_train", overrides=overrides))
     assert cfg.env.name == "dm_control:finger-spin" and cfg.env.force_adapter is None
+    assert cfg.run_dir == "runs/finger-spin/r+rf+rsp/seed0"  # not under the unused hand task
     assert default_env_factory(cfg)().observation_spec[keys.OBSERVATION].shape == (7,)  # 4 + 3
 
 
