@@ -700,3 +700,18 @@ def test_export_cannot_be_steered_outside_out_by_a_policy_config(tmp_path):
     with pytest.raises(CheckpointError, match="variant='../../../escaped' is not one of"):
         export([str(tmp_path / "checkpoint.pt"), "--out", str(tmp_path / "out")])
     assert not list(tmp_path.parent.glob("escaped*")) and not (tmp_path / "out").exists()
+
+
+def test_a_penalty_model_names_a_missing_or_wrongly_sized_observation():
+    import torch
+    from tensordict import TensorDict
+
+    from gentlerl.models import PenaltyModel
+
+    model = PenaltyModel(4, 2, 3, (8, 8, 8))
+    with pytest.raises(ValueError, match=r"'observation' of size 4, got shape \(5, 7\)"):
+        model.predict(
+            TensorDict({"observation": torch.zeros(5, 7), "action": torch.zeros(5, 2)}, [5])
+        )
+    with pytest.raises(KeyError, match="'action'"):
+        model.predict(TensorDict({"observation": torch.zeros(5, 4)}, [5]))

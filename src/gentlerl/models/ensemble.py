@@ -79,10 +79,22 @@ class _EnsembleModel(nn.Module):
     def __init__(self, obs_dim: int, action_dim: int, obs_key: str, action_key: str) -> None:
         super().__init__()
         self.obs_key, self.action_key = obs_key, action_key
+        self.obs_dim, self.action_dim = obs_dim, action_dim
         self.input_norm = RunningNorm(obs_dim + action_dim)
 
     def _inputs(self, td: TensorDictBase) -> torch.Tensor:
-        return torch.cat([td.get(self.obs_key), td.get(self.action_key)], -1)
+        parts = []
+        for key, size in ((self.obs_key, self.obs_dim), (self.action_key, self.action_dim)):
+            value = td.get(key, None)
+            if value is None:
+                raise KeyError(f"{type(self).__name__} reads {key!r}, which the batch lacks")
+            if value.shape[-1] != size:
+                raise ValueError(
+                    f"{type(self).__name__} expects {key!r} of size {size}, got shape "
+                    f"{tuple(value.shape)}"
+                )
+            parts.append(value)
+        return torch.cat(parts, -1)
 
 
 class DynamicsModel(_EnsembleModel):
