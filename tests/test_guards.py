@@ -150,3 +150,24 @@ def test_a_refused_command_line_run_leaves_no_run_dir(tmp_path):
     with pytest.raises(ValueError, match="resume=true but there is no checkpoint"):
         train_in(run_dir, cfg)
     assert not run_dir.exists()
+
+
+def test_a_checkpoint_older_than_a_field_resumes_with_the_behaviour_of_its_time(done_run, tmp_path):
+    """A run saved before dense supports and recomputed surprise (its config lacks both) trained
+    with a shared support and stored r^sp: resuming with those values is no structural change;
+    today's defaults are one, named."""
+    from gentlerl.training.checkpoint import save_checkpoint
+
+    run_dir = _copy(done_run, tmp_path)
+    ckpt = run_dir / "checkpoint.pt"
+    state = load_checkpoint(ckpt)
+    del state["config"]["network"]["dense_reward_bound"]
+    del state["config"]["gentleness"]["recompute_surprise"]
+    del state["supports"]
+    save_checkpoint(ckpt, state)
+    with pytest.raises(ValueError, match=r"network.dense_reward_bound \(None -> 1.0\)"):
+        Trainer(tiny_config(run_dir, **SHORT, resume=True), toy_env)
+    earlier = tiny_config(run_dir, **SHORT, resume=True)
+    earlier.network.dense_reward_bound = None
+    earlier.gentleness.recompute_surprise = False
+    assert Trainer(earlier, toy_env).learner.loss.value_network.module.v_min == (-10.0,) * 3

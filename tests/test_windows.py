@@ -122,3 +122,28 @@ def test_paper_scale_stores_the_surprise():
     assert rewards.recomputed == [] and rewards.window_keys == []
     batch = _trajectory()
     assert rewards.refresh(batch, 0.9) == {}
+
+
+def test_writes_shorter_than_n_steps_lose_nothing_across_a_resume():
+    """Four envs, writes of 2 steps (n = 3): the tail keeps the steps held from earlier writes,
+    so a resume in the middle stores as many transitions as a straight run, windows included."""
+    data = torch.stack([_trajectory(T=16, terminal_at=15) for _ in range(4)])  # [4, 16]
+
+    def run(resume_at=None):
+        rb = make_replay_buffer(200, 4, prioritized=False, n_steps=None)
+        writer = NStepWriter(
+            rb, 3, 0.9, ["reward", "penalty"], ["observation", ("next", "penalty")]
+        )
+        for i in range(8):
+            if i == resume_at:
+                state = writer.state_dict()
+                writer = NStepWriter(rb, 3, 0.9, ["reward", "penalty"], writer.window_keys)
+                writer.load_state_dict(state)
+            writer.extend(data[:, 2 * i : 2 * i + 2])
+        return rb[:]
+
+    straight, resumed = run(), run(resume_at=4)
+    assert len(straight) == 4 * (16 - 3)
+    assert len(resumed) == len(straight)
+    again = nstep_return(resumed[WINDOW, "next", "penalty"], resumed["steps_to_next_obs"], 0.9)
+    torch.testing.assert_close(again, resumed["next", "penalty"])

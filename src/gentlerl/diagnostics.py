@@ -50,7 +50,7 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     ``checkpoint.pt``; a ``ValueError`` (one line) for anything else. ``info``: ``frames``
     trained, ``not_saved`` (:func:`fields_not_saved`)."""
     from gentlerl.agent.builder import AgentBuilder
-    from gentlerl.envs import make_env
+    from gentlerl.training.builders import default_env_factory
     from gentlerl.training.checkpoint import (
         POLICY_KEYS,
         check_critic_supports,
@@ -75,7 +75,7 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     env = None
     try:
         cfg, _ = policy_from_state(state, ckpt)
-        env = make_env(cfg.task, seed=cfg.seed, **cfg.env.kwargs)
+        env = default_env_factory(cfg)()  # the run's own env (the hand, or an external one)
         builder = AgentBuilder(cfg, env)
         learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()
         check_critic_supports(state, learner.loss.value_network, ckpt)

@@ -120,8 +120,9 @@ class IntrinsicRewards:
         transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
         :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
         (:func:`~gentlerl.data.nstep_return`); ``("next", "penalty_surprise")`` is replaced in
-        place. Returns ``rsp_per_contact_step``: the mean recomputed :math:`r^{s_p}` over the
-        window steps with a penalty (0 with none), the number that must fall as the model learns.
+        place. Returns ``penalty_surprise_per_contact_step``: the mean recomputed :math:`r^{s_p}`
+        over the window steps with a penalty (absent when the batch has none), the number that
+        falls when the model learns what it is paid to be surprised by.
         """
         metrics: dict[str, float] = {}
         if not self.recomputed:
@@ -139,12 +140,10 @@ class IntrinsicRewards:
             steps = batch.get("steps_to_next_obs")
             batch.set(("next", key), nstep_return(per_step, steps, gamma))
             contact = window.get(("next", t.penalty_key)) < 0
-            counted = contact & (torch.arange(window.shape[-1]) < steps.reshape(-1, 1)).unsqueeze(
-                -1
-            )
-            metrics[f"{key}_per_contact_step"] = float(
-                per_step[counted].mean() if counted.any() else 0.0
-            )
+            counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)
+            counted = contact & counted.unsqueeze(-1)
+            if counted.any():  # a batch without contact says nothing about the bonus's size
+                metrics[f"{key}_per_contact_step"] = per_step[counted].mean().item()
         return metrics
 
     @property

@@ -127,17 +127,16 @@ class NStepWriter:
         self._make_transform = partial(make_nstep_transform, n_steps, gamma, list(reward_keys))
         self.transform = self._make_transform()
         self.tail: TensorDictBase | None = None
-        self._held: TensorDictBase | None = None  # the steps the transform holds back, raw
 
     def extend(self, batch: TensorDictBase) -> None:
-        self.tail = batch[..., -self.n_steps :].clone()
-        if self.window_keys:  # the same concatenation as MultiStepTransform's
-            steps = batch.select(*self.window_keys)
-            steps = steps if self._held is None else torch.cat([self._held, steps], -1)
-            self._held = steps[..., -self.n_steps :].clone()
+        # The steps the transform holds back joined with the new ones, as MultiStepTransform
+        # joins them: a write shorter than n_steps keeps earlier steps in the tail.
+        joined = batch if self.tail is None else torch.cat([self.tail, batch], -1)
+        self.tail = joined[..., -self.n_steps :].clone()
         ready = self.transform.inv(batch)
         if ready is not None:
             if self.window_keys:
+                steps = joined.select(*self.window_keys)
                 ready.set(WINDOW, nstep_windows(steps, self.n_steps, ready.shape[-1]))
             self.rb.extend(ready.reshape(-1))
 
@@ -151,7 +150,7 @@ class NStepWriter:
         there: their pending transitions bootstrap from that step (as a time limit would), none
         lost and none summed across the cut. Writing the tail alone only primes the transform.
         """
-        self.transform, self.tail, self._held = self._make_transform(), None, None
+        self.transform, self.tail = self._make_transform(), None
         if state["tail"] is not None:
             tail = state["tail"].clone()
             for key in (keys.DONE, keys.TRUNCATED):

@@ -128,6 +128,7 @@ def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
 _BEFORE = {
     ("network", "dense_reward_bound"): None,  # one shared [v_min, v_max] for every head
     ("gentleness", "recompute_surprise"): False,  # r^sp stored at collection
+    ("gentleness", "dynamics_surprise_scale"): 1.0,  # r^s as eq. 6 writes it
 }
 
 

@@ -22,6 +22,7 @@ import torch
 import yaml
 
 from gentlerl.training.checkpoint import load_checkpoint
+from gentlerl.training.config import group_flat_config
 
 CONFIG_HISTORY = "config_history.yaml"
 
@@ -102,7 +103,7 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
             )
         return None
     state = load_checkpoint(checkpoint)
-    changes = config_changes(state["config"], cfg.to_dict())
+    changes = config_changes(group_flat_config(state["config"]), cfg.to_dict())
     structural = [n for n in changes if n not in SAFE_TO_CHANGE]
     if structural:
         listed = ", ".join(f"{n} ({changes[n][0]!r} -> {changes[n][1]!r})" for n in structural)
@@ -132,7 +133,8 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
     """Append the safe changes since the checkpoint ``state`` to ``config_history.yaml``; their
     names."""
     frames = state["counters"]["frames"]
-    changes = {n: v for n, v in config_changes(state["config"], now).items() if n not in _LOCATION}
+    saved = group_flat_config(state["config"])
+    changes = {n: v for n, v in config_changes(saved, now).items() if n not in _LOCATION}
     if not changes:
         return []
     path = run_dir / CONFIG_HISTORY
