@@ -135,7 +135,8 @@ _BEFORE = {
 def _with_earlier_behaviour(grouped: dict[str, Any]) -> dict[str, Any]:
     out = {k: dict(v) if isinstance(v, dict) else v for k, v in grouped.items()}
     for (group, name), value in _BEFORE.items():
-        out.setdefault(group, {}).setdefault(name, value)
+        if isinstance(out.get(group), dict):  # a group the saved config has, without the field
+            out[group].setdefault(name, value)
     return out
 
 
