@@ -6,7 +6,7 @@ import torch
 
 from gentlerl.training import make_config
 from gentlerl.training.checkpoint import load_checkpoint
-from gentlerl.training.logging import RunLogger
+from gentlerl.training.logging import RunLogger, progress_postfix
 from gentlerl.training.loop import CHECKPOINT, Trainer, train
 from tests.test_training_loop import read_scalar, tiny_config, toy_env
 
@@ -46,7 +46,7 @@ def test_an_unknown_logger_is_a_clear_error(tmp_path):
 
 def test_progress_bar_shows_one_speed(tmp_path):
     trainer = Trainer(tiny_config(tmp_path), toy_env)
-    assert set(trainer._postfix([])) == {"success", "max_impact", "eval"}  # speed: tqdm's frame/s
+    assert set(progress_postfix([], trainer.eval_history)) == {"success", "max_impact", "eval"}
 
 
 def test_checkpoint_without_buffers_is_smaller_and_resumes(tmp_path):

@@ -10,9 +10,11 @@ from __future__ import annotations
 import csv
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import RewardSum, StepCounter, Transform
@@ -181,3 +183,23 @@ class EpisodeStats:
                 stats["length"] = float(last.get("step_count").item())
                 finished.append(self._open.pop(tid))
         return finished
+
+
+def progress_postfix(
+    recent: Sequence[Mapping[str, float]], eval_history: Sequence[Mapping[str, float]]
+) -> dict[str, str]:
+    """The progress bar's fields: the mean success (or return) and max impact of the ``recent``
+    training episodes, and the last evaluation's success rate (or return)."""
+
+    def mean(name: str) -> float:
+        return float(np.mean([e[name] for e in recent])) if recent else 0.0
+
+    # Without success in the env (an external env), the bar shows the returns instead.
+    judged = "success" if not recent or "success" in recent[-1] else "return_reward"
+    metric = "success_rate" if judged == "success" else "return"
+    last = eval_history[-1][metric] if eval_history else None
+    return {  # the speed is tqdm's own frame/s: one speed on the bar
+        judged.removeprefix("return_"): f"{mean(judged):.2f}",
+        "max_impact": f"{mean('max_impact'):.2f}N",
+        "eval": "-" if last is None else f"{last:.2f}",
+    }

@@ -42,7 +42,7 @@ from gentlerl.training.checkpoint import (
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import calibration_scalars, measure_calibration
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
-from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger
+from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger, progress_postfix
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
 
@@ -168,7 +168,7 @@ class Trainer:
             fps = (c["frames"] - start_frames) / max(time.perf_counter() - start, 1e-9)
             self._report(logger, eval_env, pending, fps, batch.numel())
             bar.update(batch.numel())
-            bar.set_postfix(self._postfix(recent))
+            bar.set_postfix(progress_postfix(recent, self.eval_history))
         bar.close()
 
     def update(self) -> dict[str, float]:
@@ -212,20 +212,6 @@ class Trainer:
             self._evaluate(logger, eval_env)
         if _crossed(frames, batch_frames, log.checkpoint_every_frames):
             self.save()
-
-    def _postfix(self, recent: deque) -> dict[str, str]:
-        def mean(name: str) -> float:
-            return float(np.mean([e[name] for e in recent])) if recent else 0.0
-
-        # Without success in the env (an external env), the bar shows the returns instead.
-        judged = "success" if not recent or "success" in recent[-1] else "return_reward"
-        metric = "success_rate" if judged == "success" else "return"
-        last = self.eval_history[-1][metric] if self.eval_history else None
-        return {  # the speed is tqdm's own frame/s: one speed on the bar
-            judged.removeprefix("return_"): f"{mean(judged):.2f}",
-            "max_impact": f"{mean('max_impact'):.2f}N",
-            "eval": "-" if last is None else f"{last:.2f}",
-        }
 
     def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
         episodes = self.cfg.logging.eval_episodes
