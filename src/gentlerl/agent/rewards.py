@@ -41,7 +41,7 @@ class IntrinsicRewards:
     ``observation``), ``action`` and a force entry ``force_key`` shaped
     ``[..., n_sites, n_channels]`` (the hand's ``touch``, ``[5, 3]``); ``feature_shapes`` names the
     entries the dynamics model predicts (used by the variants with dynamics surprise only).
-    :meth:`check_keys` says which of them a tensordict lacks.
+    ``transform.check_keys`` says which of them a tensordict lacks.
     """
 
     def __init__(
@@ -88,11 +88,6 @@ class IntrinsicRewards:
             make_model_buffer(settings.model_buffer_size) if self.losses else None
         )
 
-    def check_keys(self, tensordict: TensorDictBase) -> None:
-        """A ``KeyError`` naming what the reward transforms read and ``tensordict`` lacks (what
-        :attr:`transform` raises on a batch without them)."""
-        self.transform.check_keys(tensordict)
-
     @property
     def gated_transforms(self) -> list[ModelRewardTransform]:
         return [t for t in self.transform if isinstance(t, ModelRewardTransform)]
@@ -133,11 +128,10 @@ class IntrinsicRewards:
                 "recompute_surprise needs each transition's window of steps ('window'), written "
                 "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
             )
-        flat = window.reshape(-1)
+        flat, steps = window.reshape(-1), batch.get("steps_to_next_obs")
         for t in self.recomputed:
             key = t.out_keys[0]
             per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
-            steps = batch.get("steps_to_next_obs")
             batch.set(("next", key), nstep_return(per_step, steps, gamma))
             contact = window.get(("next", t.penalty_key)) < 0
             counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)
