@@ -4,15 +4,15 @@
 #
 #   bash recipes/finger_spin.sh [--workers N] [--out DIR] [--figures DIR] [--only KEY=V1,V2 ...]
 #
-# The grid is recipes/sweeps/finger_spin.yaml: 9 runs of 100k env steps (10k random first),
-# ~27 min each on one core of a busy 2-core machine (62 env steps/s, r+rf+rsp), ~2-2.5 h with
-# --workers 2. The env, its force and its observation come from the config alone:
+# The grid is recipes/sweeps/finger_spin.yaml: 9 runs of 50k env steps (10k random first),
+# ~14 min each on one core of a busy 2-core machine (62 env steps/s, r+rf+rsp), ~1-1.5 h with
+# --workers 2. Criteria and results: docs/FINGER.md. The env, its force and its observation come from the config alone:
 #   env.name=dm_control:finger-spin    TorchRL's DMControlEnv("finger", "spin"), cast to float32
 #   env.force_adapter (null)           dm_control_touch: force = expm1(touch) [2, 1] N
 #   env.observation_keys (null)        position [4], velocity [3], touch [2] -> observation [9]
 # One run by hand:
 #   gentlerl train env.name=dm_control:finger-spin variant=r+rf+rsp seed=0 \
-#     logging.eval_episodes=5 logging.eval_every_frames=20000 run_dir=runs/finger_spin/r+rf+rsp/seed0
+#     collector.total_frames=50000 logging.eval_episodes=5 logging.eval_every_frames=10000 run_dir=runs/finger_spin/r+rf+rsp/seed0
 # Finger-spin has no success / broken outcome: evaluations are ranked by return, and the
 # summary's rows give each variant's return and its per-episode max impact (N).
 set -euo pipefail
