@@ -288,7 +288,7 @@ def export_policy(source: str | os.PathLike, out: str | os.PathLike) -> Path:
     ``out``, atomically (:func:`save_checkpoint`): :func:`policy_file_state`, without the replay
     buffers, critics, surprise models and optimiser state of a checkpoint.
 
-    :func:`load_policy` and ``python -m gentlerl.evaluate`` read the file. Returns ``out``.
+    :func:`load_policy` and ``gentlerl evaluate`` read the file. Returns ``out``.
     """
     save_checkpoint(out, policy_file_state(load_checkpoint(source), source))
     return Path(out)

@@ -11,7 +11,7 @@ at termination. The bootstrap reads the online critic and actor (the learner's t
 lag them by at most ``learner.target_update_period`` updates). A calibrated critic has :math:`\hat Q \approx G` on average (its bias near 0) and
 its realised returns inside the head's support :math:`[v_{min}, v_{max}]`.
 
-Used by the ``gentlerl calibration`` command (:mod:`gentlerl.diagnostics`) and, on the
+Used by the ``gentlerl calibration`` command (:mod:`gentlerl.apps.calibration`) and, on the
 deterministic evaluation episodes, by the training loop (``calibration/<head>/...`` scalars).
 """
 

@@ -1,7 +1,7 @@
 """Run logging: TorchRL loggers (CSV always, wandb or tensorboard on request) and episode statistics.
 
-Layout of a run directory (read by :mod:`gentlerl.plot`): ``config.yaml``; one CSV per scalar
-under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames collected);
+Layout of a run directory (read by :mod:`gentlerl.analysis.runs`): ``config.yaml``; one CSV per
+scalar under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames collected);
 ``eval_episodes.csv`` (one row per evaluation episode); ``checkpoint.pt``; ``DONE``.
 """
 
