@@ -18,7 +18,9 @@ from gentlerl.envs import (
     Fragile,
     HandReading,
     SimulatedDriver,
+    make_dm_env,
 )
+from gentlerl.envs.factory import TASK_CLASSES, TASKS
 from gentlerl.envs.sim_driver import calibration_session
 from gentlerl.training.logging import EpisodeStats, episode_transforms
 from gentlerl.transforms import TouchCalibration
@@ -211,6 +213,13 @@ def test_bad_configuration_raises():
         )
     with pytest.raises(ValueError, match="unknown task 'push'"):
         DriverHandEnv(FakeDriver([[0.0] * 5]), "push", calibration=calibration)
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_every_simulated_task_runs_on_a_driver(task):
+    """One task table: the driver env builds each simulated task with the same class."""
+    env = DriverHandEnv(FakeDriver([[0.0] * 5]), task, calibration=_linear_calibration())
+    assert type(env.task) is TASK_CLASSES[task] is type(make_dm_env(task).task)
 
 
 @pytest.mark.parametrize("limit", [0.0, -1.0, float("inf"), float("nan"), "5"])

@@ -8,7 +8,7 @@ from gentlerl.envs.batched import BatchedHandEnv  # noqa: E402
 from gentlerl.envs.driver import DriverSpec, HandDriver, HandReading  # noqa: E402
 from gentlerl.envs.driver_env import DriverHandEnv  # noqa: E402
 from gentlerl.envs.environment import HandEnvironment  # noqa: E402
-from gentlerl.envs.factory import SUITE, TASKS, make_dm_env, make_env  # noqa: E402
+from gentlerl.envs.factory import SUITE, TASK_CLASSES, TASKS, make_dm_env, make_env  # noqa: E402
 from gentlerl.envs.hand import CALIBRATIONS, Explore, Fragile, HandPhysics, Touch  # noqa: E402
 from gentlerl.envs.sim_driver import BioTacModel, SimulatedDriver  # noqa: E402
 from gentlerl.envs.torchrl_env import HandEnv  # noqa: E402
@@ -25,6 +25,7 @@ __all__ = [
     "HandReading",
     "SimulatedDriver",
     "BatchedHandEnv",
+    "TASK_CLASSES",
     "TASKS",
     "Explore",
     "Fragile",

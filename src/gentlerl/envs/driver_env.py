@@ -29,13 +29,13 @@ from gentlerl.envs.driver import (
     check_reading,
     check_targets,
 )
-from gentlerl.envs.hand import FLAT_SIZE, OBS_SIZE, OBS_SLICES, Explore, Fragile, Touch
+from gentlerl.envs.factory import TASK_CLASSES
+from gentlerl.envs.hand import FLAT_SIZE, OBS_SIZE, OBS_SLICES, Explore
 from gentlerl.envs.watchdog import ForceWatchdog
 
 if TYPE_CHECKING:  # envs/ sits left of transforms/: the calibration is only duck-typed here
     from gentlerl.transforms.calibration import TouchCalibration
 
-TASK_CLASSES: dict[str, type[Explore]] = {"explore": Explore, "touch": Touch, "fragile": Fragile}
 # A fingertip counts as on the block when it senses more than this while the block sensor does.
 CONTACT_FORCE = 0.05
 

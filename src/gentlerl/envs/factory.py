@@ -1,8 +1,12 @@
-"""``make_dm_env`` / ``make_env``: build a task by name from a dm_control-style ``SUITE``."""
+"""``make_dm_env`` / ``make_env``: build a task by name from a dm_control-style ``SUITE``.
+
+:data:`TASK_CLASSES` is the table of the hand tasks; ``SUITE`` and ``TASKS`` derive from it.
+"""
 
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -23,7 +27,9 @@ from gentlerl.envs.hand import (
 )
 from gentlerl.envs.torchrl_env import HandEnv
 
-SUITE = containers.TaggedTasks()
+#: The hand tasks, by name: the one table :data:`SUITE`, :data:`TASKS` and
+#: :class:`~gentlerl.envs.driver_env.DriverHandEnv` read.
+TASK_CLASSES: dict[str, type[Explore]] = {"explore": Explore, "touch": Touch, "fragile": Fragile}
 
 
 def _load(
@@ -53,24 +59,26 @@ def _load(
     )
 
 
-@SUITE.add()
-def explore(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
-    """No task reward, fixed episode length (the paper's exploration setting)."""
-    return _load(Explore, time_limit, random, **task_kwargs)
+def _suite_entry(name: str, task_cls: type[Explore]) -> Callable[..., HandEnvironment]:
+    """The dm_control-style loader of ``task_cls``, named ``name`` (as ``SUITE`` keys it)."""
+
+    def load(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
+        return _load(task_cls, time_limit, random, **task_kwargs)
+
+    load.__name__ = load.__qualname__ = name
+    load.__doc__ = task_cls.__doc__
+    return load
 
 
-@SUITE.add()
-def touch(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
-    """+1 and termination when a fingerpad presses the block with > 5 N."""
-    return _load(Touch, time_limit, random, **task_kwargs)
+def _make_suite() -> containers.TaggedTasks:
+    """:data:`SUITE`: one loader per entry of :data:`TASK_CLASSES`, in its order."""
+    suite = containers.TaggedTasks()
+    for name, task_cls in TASK_CLASSES.items():
+        suite.add()(_suite_entry(name, task_cls))
+    return suite
 
 
-@SUITE.add()
-def fragile(time_limit: int = 200, random: Any = None, **task_kwargs: Any) -> HandEnvironment:
-    """+5 for a > 5 N press; an impact > 3 N breaks the block (-0.5, termination)."""
-    return _load(Fragile, time_limit, random, **task_kwargs)
-
-
+SUITE = _make_suite()
 TASKS: tuple[str, ...] = tuple(SUITE)
 
 
@@ -132,7 +140,6 @@ def make_env(
     return env
 
 
-_TASK_CLASSES: dict[str, type[Explore]] = {"explore": Explore, "touch": Touch, "fragile": Fragile}
 #: Arguments of :func:`make_env` that a training run sets itself (from its seed and collector).
 _SET_BY_RUN = {"task", "seed", "num_envs", "num_threads", "random", "task_cls", "self"}
 
@@ -147,11 +154,11 @@ def _named_params(fn: Any) -> tuple[set[str], bool]:
 def env_kwarg_names(task: str) -> list[str]:
     """The keyword arguments ``make_env(task, seed=..., **kwargs)`` accepts as ``kwargs`` (the
     calibration's fields, ``make_env``'s and the task class's keywords) for config validation."""
-    if task not in _TASK_CLASSES:
+    if task not in TASK_CLASSES:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
     names = _named_params(make_env)[0] | _named_params(_load)[0]
     names |= {key for fields in CALIBRATIONS.values() for key in fields}
-    for cls in _TASK_CLASSES[task].__mro__:
+    for cls in TASK_CLASSES[task].__mro__:
         if "__init__" in vars(cls):
             named, more = _named_params(cls.__init__)
             names |= named
