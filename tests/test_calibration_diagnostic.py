@@ -10,7 +10,7 @@ import torch
 from torchrl.envs import TransformedEnv
 
 from gentlerl import cli
-from gentlerl.diagnostics import main as calibration_main
+from gentlerl.apps.calibration import main as calibration_main
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.training.checkpoint import save_checkpoint
@@ -192,7 +192,7 @@ def test_a_run_logs_each_heads_calibration_at_evaluation(hand_run):
 
 
 def test_calibration_command_prints_every_head_and_mode(hand_run, tmp_path, capsys):
-    assert cli.COMMANDS["calibration"][0] == "gentlerl.diagnostics"
+    assert cli.COMMANDS["calibration"][0] == "gentlerl.apps.calibration"
     out = tmp_path / "calib.json"
     report = calibration_main([str(hand_run), "--episodes", "2", "--json", str(out)])
     text = capsys.readouterr().out

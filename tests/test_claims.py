@@ -6,8 +6,9 @@ import math
 import pytest
 import yaml
 
-from gentlerl.claims import first_success_frame, judge, load_final_evals, main, touch_stats
-from gentlerl.plot import find_runs, load_run
+from gentlerl.analysis.claims import load_final_evals, main
+from gentlerl.analysis.criteria import first_success_frame, judge, touch_stats
+from gentlerl.analysis.runs import find_runs, load_run
 
 
 def _run(root, task, variant, seed, impacts, success, final_eval=()):

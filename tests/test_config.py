@@ -7,6 +7,7 @@ from torchrl.envs import RenameTransform, TransformedEnv
 from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.variants import discounted_horizon
+from gentlerl.apps.train import config_from_hydra, describe, register_configs
 from gentlerl.envs import TASKS
 from gentlerl.envs.batched import available_cores
 from gentlerl.training import SCALES, make_config
@@ -15,7 +16,6 @@ from gentlerl.training.builders import (
     collection_env_factory,
     default_env_factory,
 )
-from gentlerl.training.cli import config_from_hydra, describe, register_configs
 from gentlerl.training.config import GentlenessConfig, iter_fields
 from gentlerl.transforms import DynamicsSurprise
 from tests.toy_env import ToyHandEnv

@@ -7,9 +7,10 @@ import time
 
 import pytest
 
+from gentlerl.apps.grid import expand
+from gentlerl.apps.sweeps import main
 from gentlerl.distributed import RAY_EXTRA, ClusterError, connect
 from gentlerl.distributed.sweeps import run_grid_on_ray
-from gentlerl.sweeps import expand, main
 
 from .test_sweeps import TINY
 

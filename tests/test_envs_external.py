@@ -15,14 +15,14 @@ from torchrl.envs.utils import check_env_specs
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
+from gentlerl.analysis.runs import find_runs
+from gentlerl.analysis.summary import summary_table
+from gentlerl.apps.evaluate import evaluate_policy
+from gentlerl.apps.train import config_from_hydra, register_configs
 from gentlerl.envs.external import FORCE_ADAPTERS, adapt_env, make_external_env
-from gentlerl.evaluate import evaluate_policy
 from gentlerl.models import make_actor
-from gentlerl.plot import find_runs
-from gentlerl.summary import summary_table
 from gentlerl.training import save_checkpoint
 from gentlerl.training.builders import default_env_factory
-from gentlerl.training.cli import config_from_hydra, register_configs
 from gentlerl.training.config import GentlenessConfig, make_config
 from gentlerl.training.evaluation import rank, summarize_episodes
 from gentlerl.training.logging import EpisodeStats

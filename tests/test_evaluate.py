@@ -1,4 +1,4 @@
-"""``python -m gentlerl.evaluate``: a saved policy's success, broken rate and impacts."""
+"""``gentlerl evaluate``: a saved policy's success, broken rate and impacts."""
 
 import json
 import math
@@ -6,7 +6,7 @@ import math
 import pytest
 import torch
 
-from gentlerl.evaluate import evaluate_policy, main, summarize
+from gentlerl.apps.evaluate import evaluate_policy, main, summarize
 from gentlerl.models import make_actor
 from gentlerl.training import make_config, save_checkpoint
 

@@ -1,5 +1,5 @@
 """Shipped policies: a run's final actor as a small file that ``load_policy`` and
-``python -m gentlerl.evaluate`` read, laid out as ``<task>/<variant>/seed<k>.pt``."""
+``gentlerl evaluate`` read, laid out as ``<task>/<variant>/seed<k>.pt``."""
 
 import csv
 
@@ -7,8 +7,8 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from gentlerl.evaluate import evaluate_policy
-from gentlerl.export import export_runs, main, policy_path
+from gentlerl.apps.evaluate import evaluate_policy
+from gentlerl.apps.export import export_runs, main, policy_path
 from gentlerl.models import make_actor
 from gentlerl.training import Trainer, load_checkpoint, load_policy, make_config, save_checkpoint
 from gentlerl.training.checkpoint import POLICY_KEYS, CheckpointError, export_policy

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 import yaml
 
-from gentlerl.curves import (
+from gentlerl.analysis.curves import (
     distinct_metrics,
     eval_points,
     learning_curve_panels,
     learning_curves_figure,
     seeds_label,
 )
-from gentlerl.figures import build_parser, main, resolve_run_paths
-from gentlerl.plot import find_runs, group_runs
+from gentlerl.analysis.figures import build_parser, main, resolve_run_paths
+from gentlerl.analysis.runs import find_runs, group_runs
 from tests.test_plot import _fake_run
 
 

@@ -10,8 +10,8 @@ import yaml
 from omegaconf import OmegaConf
 
 from gentlerl import keys
+from gentlerl.apps.train import train_in
 from gentlerl.training import Trainer, load_checkpoint, train
-from gentlerl.training.cli import train_in
 from gentlerl.training.guards import (
     NonFiniteError,
     config_changes,

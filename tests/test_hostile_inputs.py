@@ -15,8 +15,8 @@ import pytest
 import torch
 
 from gentlerl import keys
+from gentlerl.apps.sweeps import main as sweep
 from gentlerl.envs.watchdog import ForceWatchdog
-from gentlerl.sweeps import main as sweep
 
 
 def _sweep_file(tmp_path: Path, body: str) -> str:
@@ -450,7 +450,7 @@ def _fake_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000,0
     ],
 )
 def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content, match):
-    from gentlerl.figures import main as plot
+    from gentlerl.analysis.figures import main as plot
 
     run = _fake_run(tmp_path / "runs")
     (run / file).write_text(content)
@@ -460,7 +460,7 @@ def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content,
 
 
 def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsys):
-    from gentlerl.figures import main as plot
+    from gentlerl.analysis.figures import main as plot
 
     _fake_run(tmp_path / "runs", seed=0, scalars=None)
     with pytest.raises(FileNotFoundError, match="none of the 1 run"):
@@ -484,7 +484,7 @@ def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsy
     ],
 )
 def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
-    from gentlerl.claims import main as claims
+    from gentlerl.analysis.claims import main as claims
 
     evals = tmp_path / "evals" / "sweep"
     evals.mkdir(parents=True)
@@ -495,7 +495,7 @@ def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
 
 
 def test_claims_refuses_a_missing_final_evals_folder(tmp_path):
-    from gentlerl.claims import main as claims
+    from gentlerl.analysis.claims import main as claims
 
     _fake_run(tmp_path / "runs")
     for folder in (tmp_path / "nonexistent", tmp_path / "runs"):
@@ -504,7 +504,7 @@ def test_claims_refuses_a_missing_final_evals_folder(tmp_path):
 
 
 def test_export_refuses_unknown_tasks_and_an_empty_export(tmp_path, capsys):
-    from gentlerl.export import main as export
+    from gentlerl.apps.export import main as export
 
     with pytest.raises(SystemExit):
         export([str(tmp_path), "--tasks", "bogus"])
@@ -512,7 +512,7 @@ def test_export_refuses_unknown_tasks_and_an_empty_export(tmp_path, capsys):
 
 
 def test_evaluate_checks_its_csv_and_seed_before_any_episode(tmp_path):
-    from gentlerl.evaluate import evaluate_policy
+    from gentlerl.apps.evaluate import evaluate_policy
 
     missing = tmp_path / "no_policy.pt"  # never reached: the output is checked first
     (tmp_path / "dir.csv").mkdir()
@@ -527,7 +527,7 @@ def test_evaluate_checks_its_csv_and_seed_before_any_episode(tmp_path):
 
 
 def test_video_checks_its_output_before_rendering(tmp_path):
-    from gentlerl.video import main as video
+    from gentlerl.apps.video import main as video
 
     missing = str(tmp_path / "no_policy.pt")
     (tmp_path / "dir.mp4").mkdir()
@@ -580,7 +580,7 @@ def test_an_interrupted_sweep_kills_its_trainers_process_groups(tmp_path):
     import signal
     import time
 
-    from gentlerl.sweeps import expand, run_grid
+    from gentlerl.apps.grid import expand, run_grid
 
     script = tmp_path / "spawning.py"
     script.write_text(SPAWNING_RECIPE)
@@ -608,7 +608,7 @@ def test_an_interrupted_sweep_kills_its_trainers_process_groups(tmp_path):
 
 
 def test_a_point_interrupted_before_its_first_checkpoint_resumes(tmp_path):
-    from gentlerl.sweeps import main as sweep
+    from gentlerl.apps.sweeps import main as sweep
 
     from .test_sweeps import TINY
 
@@ -639,7 +639,7 @@ def test_a_refusal_is_one_line_on_stderr_and_exit_1(tmp_path, capsys, monkeypatc
 
 
 def test_an_unexpected_error_names_its_type_and_the_debug_switch():
-    from gentlerl.errors import one_line
+    from gentlerl.apps.errors import one_line
 
     assert one_line(ValueError("invalid:\n  - a\n  - b")) == "invalid: a; b"
     assert one_line(KeyError("x")) == "KeyError: 'x' (GENTLERL_DEBUG=1 shows the traceback)"
@@ -653,7 +653,7 @@ def test_train_refuses_unknown_fields_in_one_line(monkeypatch):
 
 
 def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypatch):
-    from gentlerl.video import main as video
+    from gentlerl.apps.video import main as video
 
     monkeypatch.setenv("MUJOCO_GL", "disable")  # what gentlerl.envs sets when none can load
     with pytest.raises(SystemExit, match="MUJOCO_GL=egl.*apt-get install libosmesa6"):
@@ -661,7 +661,7 @@ def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypa
 
 
 def test_a_ctrl_c_masked_by_a_library_error_still_reads_as_interrupted():
-    from gentlerl.errors import interrupted
+    from gentlerl.apps.errors import interrupted
 
     try:
         try:
@@ -690,7 +690,7 @@ def test_every_sweep_point_is_validated_before_any_runs(tmp_path, parameters, ma
 
 
 def test_export_cannot_be_steered_outside_out_by_a_policy_config(tmp_path):
-    from gentlerl.export import main as export
+    from gentlerl.apps.export import main as export
     from gentlerl.training.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 
     path = _policy_file(tmp_path, [16], [16])

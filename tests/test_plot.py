@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import yaml
 
-from gentlerl.figures import main
-from gentlerl.plot import (
+from gentlerl.analysis.figures import main
+from gentlerl.analysis.runs import (
     after_intrinsic_start,
     final_eval_episodes,
     final_policy_episodes,
@@ -15,7 +15,7 @@ from gentlerl.plot import (
     seed_band,
     successful_final_impacts,
 )
-from gentlerl.summary import format_table, summary_table
+from gentlerl.analysis.summary import format_table, summary_table
 
 EPISODES_HEADER = "frames,episode,success,broken,max_impact,return\n"
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize
 
+from gentlerl.apps.train import config_from_hydra, register_configs
 from gentlerl.training import make_config
-from gentlerl.training.cli import config_from_hydra, register_configs
 from gentlerl.training.config import get, iter_fields
 from gentlerl.transforms import TouchCalibration
 

@@ -5,7 +5,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gentlerl.sweeps import expand, load_sweep, main, restrict, run_grid
+from gentlerl.apps.grid import expand, restrict, run_grid
+from gentlerl.apps.sweep_files import load_sweep
+from gentlerl.apps.sweeps import main
 
 SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
 TINY = [
@@ -64,7 +66,7 @@ def test_finished_runs_are_skipped_and_checkpointed_ones_resumed(tmp_path, monke
     (runs[1].run_dir).mkdir(parents=True)
     (runs[1].run_dir / "checkpoint.pt").write_bytes(b"x")
     calls = []
-    monkeypatch.setattr("gentlerl.sweeps._call", lambda cmd, log: calls.append(cmd) or 0)
+    monkeypatch.setattr("gentlerl.apps.grid._call", lambda cmd, log: calls.append(cmd) or 0)
     counts = run_grid(runs, workers=2)
     assert counts == {"skipped": 1, "done": 1, "failed": 0, "planned": 0}
     assert len(calls) == 1 and "resume=auto" in calls[0] and "variant=r+rf+rsp" in calls[0]

@@ -7,8 +7,7 @@ import pytest
 import torch
 from tensordict.nn import TensorDictModule
 
-from gentlerl.envs import make_env
-from gentlerl.video import (
+from gentlerl.apps.video import (
     BLOCK_RGBA,
     FULL_RED_AT,
     ImpactPainter,
@@ -19,6 +18,7 @@ from gentlerl.video import (
     record_rollouts,
     write_video,
 )
+from gentlerl.envs import make_env
 
 needs_osmesa = pytest.mark.skipif(
     ctypes.util.find_library("OSMesa") is None, reason="needs libosmesa6"

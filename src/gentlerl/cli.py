@@ -1,8 +1,9 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export} ...``.
+"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export,calibration}``.
 
-Each subcommand is a module's ``main(argv, prog)``; ``gentlerl COMMAND --help`` prints that
-command's options with their defaults. Modules are imported only when their command runs, so
-``gentlerl --help`` and ``gentlerl plot`` start without loading torch or MuJoCo.
+Each subcommand is a module's ``main(argv, prog)`` (:mod:`gentlerl.apps`, :mod:`gentlerl.analysis`);
+``gentlerl COMMAND --help`` prints that command's options with their defaults. Modules are imported
+only when their command runs, so ``gentlerl --help`` and ``gentlerl plot`` start without loading
+torch or MuJoCo.
 """
 
 from __future__ import annotations
@@ -13,29 +14,38 @@ import os
 import sys
 from collections.abc import Sequence
 
-from gentlerl.errors import DEBUG_ENV, debugging, interrupted, one_line
+from gentlerl.apps.errors import DEBUG_ENV, debugging, interrupted, one_line
 
 #: command -> (module with ``main(argv, prog)``, one-line description); ``None``: the hydra app.
 COMMANDS: dict[str, tuple[str | None, str]] = {
     "train": (None, "train an agent (hydra overrides: task=touch variant=r+rf+rsp seed=0 ...)"),
-    "sweep": ("gentlerl.sweeps", "run a wandb grid sweep file locally, resumably"),
-    "plot": ("gentlerl.figures", "paper-style figures and a summary table from runs or a sweep"),
-    "video": ("gentlerl.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
-    "evaluate": ("gentlerl.evaluate", "success, broken rate and impacts of a saved policy"),
-    "claims": ("gentlerl.claims", "the paper's six claims judged on a reproduce.sh grid"),
-    "export": ("gentlerl.export", "runs' final actors as small policy files (no buffer, critics)"),
-    "calibration": ("gentlerl.diagnostics", "each critic head's predicted Q vs realised return"),
+    "sweep": ("gentlerl.apps.sweeps", "run a wandb grid sweep file locally, resumably"),
+    "plot": (
+        "gentlerl.analysis.figures",
+        "paper-style figures and a summary table from runs or a sweep",
+    ),
+    "video": ("gentlerl.apps.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
+    "evaluate": ("gentlerl.apps.evaluate", "success, broken rate and impacts of a saved policy"),
+    "claims": ("gentlerl.analysis.claims", "the paper's six claims judged on a reproduce.sh grid"),
+    "export": (
+        "gentlerl.apps.export",
+        "runs' final actors as small policy files (no buffer, critics)",
+    ),
+    "calibration": (
+        "gentlerl.apps.calibration",
+        "each critic head's predicted Q vs realised return",
+    ),
 }
 
 
 def run_train(argv: Sequence[str]) -> None:
     """Run the hydra app (``gentlerl-train``) with ``argv`` as its command line."""
-    from gentlerl.training import cli
+    from gentlerl.apps import train
 
     saved = sys.argv
     sys.argv = ["gentlerl train", *argv]
     try:
-        cli.main()
+        train.main()
     finally:
         sys.argv = saved
 

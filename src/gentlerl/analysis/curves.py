@@ -18,11 +18,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gentlerl.plot import EVAL_SUCCESS, PRIMARY_LAM2, Run, Series, group_runs  # noqa: E402
+from gentlerl.analysis.runs import EVAL_SUCCESS, PRIMARY_LAM2, Run, Series, group_runs  # noqa: E402
 
 MAX_BANDS = 4
 #: (title, variants, every lambda'_2): the claims' contrasts. ``r+rf+rsp`` at every lambda'_2 in
-#: claim 5's panel, at the task's :data:`~gentlerl.plot.PRIMARY_LAM2` in claim 6's (every
+#: claim 5's panel, at the task's :data:`~gentlerl.analysis.runs.PRIMARY_LAM2` in claim 6's (every
 #: lambda'_2 where the primary one was not run).
 CLAIM_PANELS = (
     ("claim 4: the penalty alone", ("r", "r+rf", "r+rf+rs"), False),

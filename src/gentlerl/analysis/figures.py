@@ -1,18 +1,20 @@
 """Paper-style figures from run directories: ``gentlerl plot RUN_DIR... -o OUT``.
 
-Draws what :mod:`gentlerl.plot` reads from run directories (or a sweep's runs). Figures (PNG):
+Draws what :mod:`gentlerl.analysis.runs` reads from run directories (or a sweep's runs). Figures
+(PNG):
 
-- ``impact_histograms.png`` (paper Fig. 3) — max impact per training rollout (N) after the
-  intrinsic rewards switch on (:func:`gentlerl.plot.after_intrinsic_start`), touching rollouts
-  only, one panel per variant, lambda'_2 values overlaid;
+- ``impact_histograms.png`` (paper Fig. 3) — max impact per training rollout (N) after the intrinsic
+  rewards switch on (:func:`gentlerl.analysis.runs.after_intrinsic_start`), touching rollouts only,
+  one panel per variant, lambda'_2 values overlaid;
 - ``final_impacts.png`` (paper Fig. 5) — max impact of the successful evaluation rollouts of each
-  run's final policy (:func:`gentlerl.plot.successful_final_impacts`; the legend names the
+  run's final policy (:func:`gentlerl.analysis.runs.successful_final_impacts`; the legend names the
   episodes' source and says when a variant has none);
-- ``learning_curves.png`` (paper Fig. 4) — evaluation success rate (and return, where it
-  differs) vs env frames, one panel per claim, points with min-max bars (:mod:`gentlerl.curves`);
+- ``learning_curves.png`` (paper Fig. 4) — evaluation success rate (and return, where it differs) vs
+  env frames, one panel per claim, points with min-max bars (:mod:`gentlerl.analysis.curves`);
 - ``reward_components.png`` (paper Fig. 6) — mean of each reward component in the sampled
   batches vs frames, with a dashed line where the intrinsic rewards start;
-- ``summary.csv`` / ``summary.md`` — :func:`gentlerl.summary.summary_table`, the same selections.
+- ``summary.csv`` / ``summary.md`` — :func:`gentlerl.analysis.summary.summary_table`, the same
+  selections.
 """
 
 from __future__ import annotations
@@ -30,9 +32,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gentlerl.curves import learning_curves_figure, seeds_label  # noqa: E402
-from gentlerl.plot import (  # noqa: E402
-    FINAL_EVAL_EPISODES,
+from gentlerl.analysis.curves import learning_curves_figure, seeds_label  # noqa: E402
+from gentlerl.analysis.runs import (  # noqa: E402
     Run,
     Series,
     after_intrinsic_start,
@@ -43,7 +44,8 @@ from gentlerl.plot import (  # noqa: E402
     seed_band,
     successful_final_impacts,
 )
-from gentlerl.summary import format_table, summary_markdown, summary_table  # noqa: E402
+from gentlerl.analysis.summary import format_table, summary_markdown, summary_table  # noqa: E402
+from gentlerl.config.layout import FINAL_EVAL_EPISODES  # noqa: E402
 
 
 def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
@@ -84,7 +86,7 @@ def _histograms(runs: Sequence[Run], select: Callable, note: Callable, title: st
 
 def plot_impact_histograms(runs: Sequence[Run], out: Path) -> Path:
     """Paper Fig. 3: max impact of the touching training rollouts after the intrinsic rewards
-    switch on (:func:`gentlerl.plot.after_intrinsic_start`)."""
+    switch on (:func:`gentlerl.analysis.runs.after_intrinsic_start`)."""
 
     def note(group: list[Run], values: np.ndarray) -> str:
         every = after_intrinsic_start(group, with_zeros=True)
@@ -97,7 +99,8 @@ def plot_impact_histograms(runs: Sequence[Run], out: Path) -> Path:
 
 def plot_final_impacts(runs: Sequence[Run], out: Path) -> Path:
     """Paper Fig. 5: max impact of the successful rollouts of each run's final policy
-    (:func:`gentlerl.plot.successful_final_impacts`); the legend names the episodes' source."""
+    (:func:`gentlerl.analysis.runs.successful_final_impacts`); the legend names the episodes'
+    source."""
 
     def note(group: list[Run], values: np.ndarray) -> str:
         episodes = sum(len(final_policy_episodes(r)[0]) for r in group)
@@ -220,7 +223,3 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl plot") -> None
     for path in write_figures(runs, out):
         print(path)
     print(format_table(summary_table(runs)))
-
-
-if __name__ == "__main__":
-    main(prog="python -m gentlerl.figures")

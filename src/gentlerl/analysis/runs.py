@@ -1,11 +1,10 @@
-"""Runs and their numbers: what ``gentlerl plot`` (:mod:`gentlerl.figures`) draws and tabulates.
+"""Runs and their numbers: the run reader behind ``gentlerl plot`` and ``gentlerl claims``.
 
-Reads the layout written by :mod:`gentlerl.training` (``config.yaml``, TorchRL ``CSVLogger``
-scalars under ``logs/scalars``, ``eval_episodes.csv``, ``final_eval_episodes.csv``); a ``RUN_DIR``
+Reads the run directories the trainer writes (:class:`gentlerl.config.layout.RunLayout`: the
+config, TorchRL ``CSVLogger`` scalars, the in-loop and final evaluation episodes); a ``RUN_DIR``
 may also be a folder of runs (searched recursively). Runs that differ only by seed are grouped
 (:func:`group_runs`). The paper's figure selections: :func:`after_intrinsic_start` (Fig. 3) and
-:func:`successful_final_impacts` (Fig. 5); :mod:`gentlerl.summary` tabulates them.
-``python -m gentlerl.plot RUN_DIR... -o OUT`` is ``gentlerl plot``.
+:func:`successful_final_impacts` (Fig. 5). Imports nothing else of :mod:`gentlerl.analysis`.
 """
 
 from __future__ import annotations
@@ -19,11 +18,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from gentlerl.config.layout import CONFIG, RunLayout
+
 Series = tuple[np.ndarray, np.ndarray]
 EVAL_SUCCESS = "eval/success_rate"
-#: Per-episode results of a run's final actor, written next to its checkpoint by
-#: ``python -m gentlerl.evaluate checkpoint.pt --episodes-csv`` (``recipes/reproduce.sh``).
-FINAL_EVAL_EPISODES = "final_eval_episodes.csv"
 #: docs/REPRODUCTION.md's primary lambda'_2 per task: the criteria judge ``r+rf+rsp`` at it.
 PRIMARY_LAM2 = {"touch": 2.0, "fragile": 1.5, "explore": 2.0}
 
@@ -35,6 +33,10 @@ class Run:
     path: Path
     config: dict
     scalars: dict[str, Series] = field(default_factory=dict)
+
+    @property
+    def layout(self) -> RunLayout:
+        return RunLayout(self.path)
 
     def setting(self, group: str, name: str, default: Any = None) -> Any:
         """``config[group][name]``, or ``config[name]`` in a run of the earlier flat config."""
@@ -82,11 +84,12 @@ def _read_series(path: Path) -> Series:
 
 
 def load_run(path: str | Path) -> Run:
-    """Load one run directory (it must hold ``config.yaml``)."""
+    """Load one run directory (it must hold its config)."""
     path = Path(path)
-    config_path = path / "config.yaml"
-    if not config_path.is_file():
-        raise FileNotFoundError(f"{path} is not a gentlerl run directory (no config.yaml)")
+    layout = RunLayout(path)
+    config_path = layout.config
+    if not layout.is_run():
+        raise FileNotFoundError(f"{path} is not a gentlerl run directory (no {CONFIG})")
     try:
         config = yaml.safe_load(config_path.read_text(errors="replace"))
     except yaml.YAMLError as err:
@@ -94,7 +97,7 @@ def load_run(path: str | Path) -> Run:
     if not isinstance(config, dict) or not {"task", "variant", "seed"} <= set(config):
         raise ValueError(f"{config_path}: not a run's config (a mapping with task, variant, seed)")
     run = Run(path, config)
-    scalars = path / "logs" / "scalars"
+    scalars = layout.scalars
     for csv_path in sorted(scalars.rglob("*.csv")):
         run.scalars[str(csv_path.relative_to(scalars).with_suffix(""))] = _read_series(csv_path)
     return run
@@ -106,9 +109,9 @@ def find_runs(paths: Iterable[str | Path]) -> list[Run]:
     for p in map(Path, paths):
         if not p.exists():
             raise FileNotFoundError(f"no such run directory: {p}")
-        runs += [load_run(c.parent) for c in sorted(p.rglob("config.yaml"))]
+        runs += [load_run(c.parent) for c in sorted(p.rglob(CONFIG))]
     if not runs:
-        raise FileNotFoundError(f"no run directories (with config.yaml) under {list(paths)}")
+        raise FileNotFoundError(f"no run directories (with {CONFIG}) under {list(paths)}")
     return runs
 
 
@@ -171,21 +174,21 @@ def _episode_rows(path: Path) -> np.ndarray:
 
 
 def final_eval_episodes(run: Run) -> np.ndarray:
-    """The rows of the run's last in-loop evaluation in ``eval_episodes.csv`` (the one at
+    """The rows of the run's last in-loop evaluation (``eval_episodes.csv``, the one at
     ``total_frames``: the final policy); empty if none."""
-    rows = _episode_rows(run.path / "eval_episodes.csv")
+    rows = _episode_rows(run.layout.eval_episodes)
     return rows[rows["frames"] == rows["frames"].max()] if len(rows) else rows
 
 
 def final_policy_episodes(run: Run) -> tuple[np.ndarray, str]:
     """Evaluation episodes of the run's final policy and where they come from.
 
-    ``"evaluate"``: :data:`FINAL_EVAL_EPISODES`, written by ``python -m gentlerl.evaluate
-    checkpoint.pt --episodes-csv RUN/final_eval_episodes.csv`` (the criteria's 20 episodes),
+    ``"evaluate"``: ``final_eval_episodes.csv``, written by ``gentlerl evaluate RUN/checkpoint.pt
+    --episodes-csv RUN/final_eval_episodes.csv`` (the criteria's 20 episodes),
     when it evaluated an actor no older than the run's last in-loop evaluation; else
     ``"in-loop"``: the last in-loop evaluation (:func:`final_eval_episodes`); else ``"none"``.
     """
-    rows = _episode_rows(run.path / FINAL_EVAL_EPISODES)
+    rows = _episode_rows(run.layout.final_eval_episodes)
     in_loop = final_eval_episodes(run)
     if len(rows) and (not len(in_loop) or rows["frames"].min() >= in_loop["frames"].max()):
         return rows, "evaluate"
@@ -205,9 +208,3 @@ def final_sources(runs: Sequence[Run]) -> str:
     """Where the final-policy episodes of ``runs`` come from: one source, or ``"mixed"``."""
     sources = {final_policy_episodes(run)[1] for run in runs}
     return sources.pop() if len(sources) == 1 else "mixed"
-
-
-if __name__ == "__main__":
-    from gentlerl.figures import main
-
-    main(prog="python -m gentlerl.plot")

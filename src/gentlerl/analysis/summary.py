@@ -1,16 +1,16 @@
 """The summary table of ``gentlerl plot`` (``summary.csv`` / ``summary.md``): per variant, the
 numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
 
-- ``final_*``: the final policy (:func:`gentlerl.plot.final_policy_episodes`; ``final_source``
-  says which episodes: ``evaluate`` = the 20 episodes of ``python -m gentlerl.evaluate``,
-  ``in-loop`` = the run's last in-loop evaluation, ``none``). ``final_successful_*``: max impact
-  of its *successful* rollouts (paper Fig. 5, :func:`gentlerl.plot.successful_final_impacts`).
-  ``final_return``, ``final_median_impact``, ``final_p90_impact``: mean task return and max
-  impact (N) of every final-policy episode, what an env without success (an external env such as
+- ``final_*``: the final policy (:func:`gentlerl.analysis.runs.final_policy_episodes`;
+  ``final_source`` says which episodes: ``evaluate`` = the 20 episodes of ``gentlerl evaluate``,
+  ``in-loop`` = the run's last in-loop evaluation, ``none``). ``final_successful_*``: max impact of
+  its *successful* rollouts (paper Fig. 5, :func:`gentlerl.analysis.runs.successful_final_impacts`).
+  ``final_return``, ``final_median_impact``, ``final_p90_impact``: mean task return and max impact
+  (N) of every final-policy episode, what an env without success (an external env such as
   dm_control's finger) is judged by.
 - ``*after_switch``: training rollouts after the intrinsic rewards switch on (paper Fig. 3,
-  :func:`gentlerl.plot.after_intrinsic_start`); impact columns over the touching ones (max impact
-  > 0), in N.
+  :func:`gentlerl.analysis.runs.after_intrinsic_start`); impact columns over the touching ones (max
+  impact > 0), in N.
 - ``mean_eval_success``, ``seeds_reaching_0.8``, ``first_0.8_frames``: the in-loop evaluations.
 """
 
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gentlerl.plot import (
+from gentlerl.analysis.runs import (
     EVAL_SUCCESS,
     Run,
     after_intrinsic_start,

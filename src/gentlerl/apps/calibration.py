@@ -24,13 +24,15 @@ from typing import Any
 import torch
 from torchrl.envs.utils import ExplorationType
 
+from gentlerl.config.layout import RunLayout
+
 #: Rollout modes: the deterministic actor, and the actor with its training noise.
 MODES = {"deterministic": ExplorationType.DETERMINISTIC, "noisy": ExplorationType.RANDOM}
 
 
 def _checkpoint_path(path: str | os.PathLike) -> Path:
     path = Path(path)
-    return path / "checkpoint.pt" if path.is_dir() else path
+    return RunLayout(path).checkpoint if path.is_dir() else path
 
 
 def fields_not_saved(saved_config: dict[str, Any]) -> list[str]:
@@ -203,7 +205,3 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") 
         tmp.write_text(json.dumps(report, indent=1))
         tmp.replace(out)
     return report
-
-
-if __name__ == "__main__":
-    main()

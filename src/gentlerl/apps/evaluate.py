@@ -1,7 +1,7 @@
-"""Evaluate a saved policy: ``python -m gentlerl.evaluate POLICY --episodes N [--task T] [--seed S]``.
+"""Evaluate a saved policy: ``gentlerl evaluate POLICY --episodes N [--task T] [--seed S]``.
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
-``best_policy.pt``, or a shipped policy of ``python -m gentlerl.export``). The actor runs without exploration noise in the env its run trained on (its
+``best_policy.pt``, or a shipped policy of ``gentlerl export``). The actor runs without exploration noise in the env its run trained on (its
 ``env.kwargs``, so the same hand calibration), or on another task with ``--task`` or another
 calibration with ``--calibration`` (docs/CALIBRATION.md). Prints the
 success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N); ``--episodes-csv`` also writes one
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from gentlerl.apps.outputs import check_output_file
 from gentlerl.envs import CALIBRATIONS, TASKS, make_env
-from gentlerl.outputs import check_output_file
 
 SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
 
@@ -117,9 +117,7 @@ def write_episodes(
     return path
 
 
-def main(
-    argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.evaluate"
-) -> dict[str, float]:
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl evaluate") -> dict[str, float]:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument(
         "policy", help="a run's checkpoint.pt or best_policy.pt, or an exported policy file"
@@ -151,7 +149,3 @@ def main(
             f"p90 {result['p90_max_impact']:.2f} N, return {result['mean_return']:.1f}"
         )
     return result
-
-
-if __name__ == "__main__":
-    main()

@@ -1,12 +1,12 @@
-"""Ship trained policies: ``python -m gentlerl.export RUNS... --out docs/policies``.
+"""Ship trained policies: ``gentlerl export RUNS... --out docs/policies``.
 
 Writes each run's final actor (its ``checkpoint.pt``) as a small policy file
 (:func:`gentlerl.training.checkpoint.export_policy`: config and actor weights; no replay buffer,
 critics or models) to ``OUT/<task>/<variant>/seed<k>.pt``. Penalty-surprise (``rsp``) variants
-are exported at their task's primary lambda'_2 (:data:`gentlerl.plot.PRIMARY_LAM2`, the value
+are exported at their task's primary lambda'_2 (:data:`gentlerl.analysis.runs.PRIMARY_LAM2`, the value
 docs/REPRODUCTION.md's criteria judge) and skipped at the others, unless ``--all-lambdas``, which
 writes those to ``OUT/<task>/<variant>@lam<lambda'_2>/seed<k>.pt``. Evaluate a shipped policy with
-``python -m gentlerl.evaluate OUT/touch/r+rf+rsp/seed0.pt --episodes 20``.
+``gentlerl evaluate OUT/touch/r+rf+rsp/seed0.pt --episodes 20``.
 """
 
 from __future__ import annotations
@@ -16,9 +16,8 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from gentlerl.plot import PRIMARY_LAM2
-
-CHECKPOINT = "checkpoint.pt"
+from gentlerl.analysis.runs import PRIMARY_LAM2
+from gentlerl.config.layout import CHECKPOINT
 
 
 def policy_path(config: dict, out: str | os.PathLike, all_lambdas: bool = False) -> Path | None:
@@ -73,7 +72,7 @@ def export_runs(
     return written
 
 
-def main(argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.export") -> None:
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl export") -> None:
     """Export the runs named on the command line; print each file with its size."""
     parser = argparse.ArgumentParser(
         prog=prog,
@@ -101,7 +100,3 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m gentlerl.expo
     for dest, ckpt in sorted(written.items()):
         print(f"{dest} ({dest.stat().st_size / 1024:.0f} KiB) <- {ckpt}")
     print(f"{len(written)} policies under {args.out}")
-
-
-if __name__ == "__main__":
-    main()

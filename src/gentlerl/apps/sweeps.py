@@ -1,223 +1,61 @@
-"""Run a wandb sweep file's grid locally, without a wandb server.
+"""Run a wandb sweep file's grid, locally or on Ray, without a wandb server.
 
     gentlerl sweep recipes/sweeps/fig4_touch.yaml --workers 2 --out runs/sweeps --figures figs
 
-Each grid point becomes one ``python -m gentlerl.training.cli key=value ...`` process with a
-deterministic ``run_dir`` (``OUT/<sweep>/<key-value_...>``). The runner is resumable: a run whose
-``DONE`` marker exists is skipped, the others run with ``resume=auto`` (continued from their
-checkpoint, or started again if interrupted before their first). Grid points that differ only in
-``lam_prime`` for a variant without penalty surprise are run once (the parameter does not affect
-them). Keys and values are checked before anything runs (:mod:`gentlerl.sweep_files`), and each
-point's config is validated; an interrupted sweep kills its trainers' process groups. The same files work with ``wandb sweep`` / ``wandb agent``.
-``--backend ray`` runs each grid point as a Ray task instead, on a local Ray or a cluster
-(:mod:`gentlerl.distributed.sweeps`, docs/DISTRIBUTED.md).
+Each grid point becomes one ``gentlerl-train key=value ...`` process with a deterministic
+``run_dir`` (``OUT/<sweep>/<key-value_...>``, :mod:`gentlerl.apps.grid`). The runner is
+resumable: a run whose ``DONE`` marker exists is skipped, the others run with ``resume=auto``
+(continued from their checkpoint, or started again if interrupted before their first). Grid points
+that differ only in ``lam_prime`` for a variant without penalty surprise are run once (the
+parameter does not affect them). Keys and values are checked before anything runs
+(:mod:`gentlerl.apps.sweep_files`), and each point's config is validated; an interrupted sweep
+kills its trainers' process groups. The same files work with ``wandb sweep`` / ``wandb agent``.
+The points run on a backend (:data:`BACKENDS`): ``local`` runs ``--workers`` at a time here,
+``ray`` runs each as a Ray task, on a local Ray or a cluster (:mod:`gentlerl.distributed.sweeps`,
+docs/DISTRIBUTED.md).
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
-import os
 import signal
-import subprocess
-import sys
-import threading
-from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import IO, Any
 
+from gentlerl.apps.grid import GridRun, expand, restrict, run_grid
+from gentlerl.apps.sweep_files import check_set, load_sweep, point_problem
 from gentlerl.cli import command_parser
-from gentlerl.sweep_files import check_set, load_sweep, point_problem
-from gentlerl.training.loop import DONE_MARKER
+
+#: Runs a grid's points with the extra overrides and the command line's options; the counts of
+#: ``done`` / ``skipped`` / ``failed`` / ``planned`` points.
+Backend = Callable[[Sequence[GridRun], Sequence[str], argparse.Namespace], dict[str, int]]
 
 
-@dataclass(frozen=True)
-class GridRun:
-    overrides: tuple[tuple[str, Any], ...]
-    run_dir: Path
-    #: A recipe script to run instead of the installed ``gentlerl-train`` app (on a Ray
-    #: cluster, None runs the worker node's installed gentlerl).
-    script: Path | None = None
-
-    def command(self, extra: Sequence[str] = ()) -> list[str]:
-        args = [f"{k}={_format(v)}" for k, v in self.overrides]
-        # None: the installed app, wherever gentlerl is installed (no path to recipes/).
-        app = [str(self.script)] if self.script else ["-m", "gentlerl.training.cli"]
-        return [sys.executable, *app, *args, *extra, f"run_dir={self.run_dir}"]
-
-
-def _format(value: Any) -> str:
-    if isinstance(value, list | tuple):
-        return "[" + ",".join(_format(v) for v in value) + "]"
-    return "null" if value is None else str(value)
-
-
-def _slug(value: Any) -> str:
-    if isinstance(value, list | tuple):
-        return "-".join(_slug(v) for v in value)
-    return str(value)
-
-
-def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
-    """Every grid point (lam_prime dropped where the variant has no penalty surprise), deduplicated."""
-    runs, seen = [], set()
-    names = list(grid)
-    for values in itertools.product(*(grid[n] for n in names)):
-        point = dict(zip(names, values, strict=True))
-        if "rsp" not in str(point.get("variant", "rsp")):
-            point.pop("gentleness.lam_prime", None)
-        key = tuple(point.items())
-        if repr(key) in seen:
-            continue
-        seen.add(repr(key))
-        # No commas, brackets or '=' in the directory name: hydra would parse them in run_dir=...
-        name = "_".join(f"{k.rsplit('.', 1)[-1]}-{_slug(v)}" for k, v in key)
-        runs.append(GridRun(key, _inside(out, name)))
-    return runs
-
-
-def _inside(out: Path, name: str) -> Path:
-    """``out / name``, refused unless it is a folder directly under ``out``."""
-    run_dir = out / name
-    if "/" in name or os.sep in name or run_dir.resolve().parent != out.resolve():
-        raise ValueError(f"grid point folder {name!r} would not be directly under {out}")
-    if len(name.encode()) > 255:
-        raise ValueError(f"grid point folder {name[:60]!r}... is longer than 255 bytes")
-    return run_dir
-
-
-def restrict(grid: dict[str, list[Any]], only: Sequence[str]) -> dict[str, list[Any]]:
-    """The grid with parameter ``KEY`` cut to the values listed in each ``KEY=V1,V2,...`` of
-    ``only`` that it has (values compared as they print on a command line: ``seed=0,1``,
-    ``variant=r+rf+rsp``). A ``KEY`` the sweep does not vary, or a cut that leaves nothing, is an
-    error."""
-    grid = dict(grid)
-    for item in only:
-        key, sep, values = item.partition("=")
-        if not sep or key not in grid:
-            raise ValueError(
-                f"--only {item!r}: expected KEY=V1,V2,... with KEY one of {sorted(grid)}"
-            )
-        wanted = set(values.split(","))
-        kept = [v for v in grid[key] if _format(v) in wanted]
-        if not kept:
-            raise ValueError(
-                f"--only {item!r} keeps none of {key}'s values {[_format(v) for v in grid[key]]}"
-            )
-        grid[key] = kept
-    return grid
-
-
-def run_grid(
-    runs: Sequence[GridRun], workers: int = 1, extra: Sequence[str] = (), dry_run: bool = False
+def _local(
+    runs: Sequence[GridRun], extra: Sequence[str], args: argparse.Namespace
 ) -> dict[str, int]:
-    """Run (or, ``dry_run``, print) the grid; counts ``done``/``skipped``/``failed``/``planned``.
-
-    Interrupted (Ctrl-C, ``SIGTERM`` through :func:`main`), it kills the process group of every
-    trainer still running, so no orphaned trainer keeps writing its run directory."""
-    todo = pending(runs)
-    counts = {"skipped": len(runs) - len(todo), "done": 0, "failed": 0, "planned": 0}
-    _STOPPING.clear()
-    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
-        try:
-            for code in pool.map(lambda run: run_point(run, extra, dry_run), todo):
-                counts["planned" if dry_run else "done" if code == 0 else "failed"] += 1
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)  # no queued point starts
-            stop_trainers()
-            raise
-    return counts
+    return run_grid(runs, args.workers, extra, args.dry_run)
 
 
-def pending(runs: Sequence[GridRun]) -> list[GridRun]:
-    """The runs without a ``DONE`` marker."""
-    return [r for r in runs if not (r.run_dir / DONE_MARKER).exists()]
+def _ray(runs: Sequence[GridRun], extra: Sequence[str], args: argparse.Namespace) -> dict[str, int]:
+    if args.dry_run:
+        return _local(runs, extra, args)
+    from gentlerl.distributed.cluster import ClusterError
+    from gentlerl.distributed.sweeps import run_grid_on_ray
 
-
-def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) -> int:
-    """Run one grid point with ``resume=auto`` (continued from its checkpoint, or started again
-    when it was interrupted before its first one); the recipe's exit code.
-
-    Output goes to ``run_dir/stdout.log``; a failure's last line is printed here too. The Ray
-    backend calls this on the worker node.
-    """
-    command = run.command([*extra, "resume=auto"])
-    print(" ".join(command), flush=True)
-    if dry_run:
-        return 0
-    run.run_dir.mkdir(parents=True, exist_ok=True)
-    log_path = run.run_dir / "stdout.log"
-    with log_path.open("a") as log:
-        code = _call(command, log)
-    if code != 0:
-        lines = log_path.read_text(errors="replace").strip().splitlines()
-        print(f"{run.run_dir}: exit {code}: {lines[-1] if lines else ''}", file=sys.stderr)
-    return code
-
-
-#: Trainers running now (their process groups are killed when the sweep is interrupted).
-_LIVE: set[subprocess.Popen] = set()
-_LIVE_LOCK = threading.Lock()
-#: Set by :func:`stop_trainers`: a point about to start does not.
-_STOPPING = threading.Event()
-
-
-def _call(command: list[str], log: IO[str]) -> int:
-    """Run ``command`` in its own process group (its collector workers with it); the group is
-    killed if this call is interrupted (Ctrl-C, a cancelled Ray task)."""
-    with _LIVE_LOCK:
-        if _STOPPING.is_set():
-            return -signal.SIGTERM
-        proc = subprocess.Popen(
-            command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
-        )
-        _LIVE.add(proc)
+    cpus = max(1, round(args.workers * args.cpus_per_run))
     try:
-        return proc.wait()
-    except BaseException:
-        _kill_group(proc)
-        raise
-    finally:
-        with _LIVE_LOCK:
-            _LIVE.discard(proc)
+        return run_grid_on_ray(runs, extra, args.address, args.cpus_per_run, cpus)
+    except ClusterError as err:
+        raise SystemExit(str(err)) from None
 
 
-def _kill_group(proc: subprocess.Popen) -> None:
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=30)
-    except ProcessLookupError:
-        pass
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-
-
-def stop_trainers() -> None:
-    """Kill the process group of every trainer this sweep still runs."""
-    with _LIVE_LOCK:
-        _STOPPING.set()
-        live = list(_LIVE)
-    for proc in live:
-        _kill_group(proc)
+#: ``--backend`` name -> how the grid runs.
+BACKENDS: dict[str, Backend] = {"local": _local, "ray": _ray}
 
 
 def _terminate(signum: int, frame: object) -> None:
     raise SystemExit(128 + signum)  # unwinds through run_grid, which stops the trainers
-
-
-def _run(args: argparse.Namespace, runs: list[GridRun], extra: list[str]) -> dict[str, int]:
-    if args.backend == "ray" and not args.dry_run:
-        from gentlerl.distributed.cluster import ClusterError
-        from gentlerl.distributed.sweeps import run_grid_on_ray
-
-        cpus = max(1, round(args.workers * args.cpus_per_run))
-        try:
-            return run_grid_on_ray(runs, extra, args.address, args.cpus_per_run, cpus)
-        except ClusterError as err:
-            raise SystemExit(str(err)) from None
-    return run_grid(runs, args.workers, extra, args.dry_run)
 
 
 def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
@@ -245,7 +83,7 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
         "--figures", default=None, help="afterwards, write the paper-style figures here"
     )
     parser.add_argument(
-        "--backend", choices=("local", "ray"), default="local",
+        "--backend", choices=tuple(BACKENDS), default="local",
         help="local: --workers processes here; ray: one Ray task per run (docs/DISTRIBUTED.md)",
     )  # fmt: skip
     parser.add_argument(
@@ -274,17 +112,13 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)
     handlers = {sig: signal.signal(sig, _terminate) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
-        counts = _run(args, runs, extra)
+        counts = BACKENDS[args.backend](runs, extra, args)
     finally:
         for sig, handler in handlers.items():
             signal.signal(sig, handler)
     print(f"{len(runs)} runs: {counts}")
     if args.figures and not args.dry_run:
-        from gentlerl.figures import main as plot
+        from gentlerl.analysis.figures import main as plot
 
         plot([str(root), "-o", args.figures])
     return 1 if counts["failed"] else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main(prog="python -m gentlerl.sweeps"))

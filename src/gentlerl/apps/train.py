@@ -123,8 +123,8 @@ def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
 def _app(cfg: DictConfig) -> dict[str, float]:
     from hydra.core.hydra_config import HydraConfig
 
+    from gentlerl.apps.errors import debugging, interrupted, one_line
     from gentlerl.distributed import ClusterError
-    from gentlerl.errors import debugging, interrupted, one_line
 
     try:
         summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)

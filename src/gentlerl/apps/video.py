@@ -26,11 +26,11 @@ from tensordict.nn import TensorDictModule
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
+from gentlerl.apps.outputs import check_output_file
 from gentlerl.cli import command_parser
 from gentlerl.envs.assets import FINGERTIPS
 from gentlerl.envs.rendering import INSTALL_HINT
 from gentlerl.functional import impact
-from gentlerl.outputs import check_output_file
 
 FULL_RED_AT = 10.0  # N
 # Blue and black: the scene's background is green (gymnasium-robotics' skybox) and the fingertips
@@ -213,7 +213,3 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
         print(write_video(frames, args.out, fps=args.fps))
     finally:
         env.close()  # release the GL context before interpreter shutdown
-
-
-if __name__ == "__main__":
-    main(prog="python -m gentlerl.video")

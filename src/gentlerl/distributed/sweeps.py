@@ -1,10 +1,10 @@
 """A sweep grid on Ray: each grid point is one Ray task running the recipe on some node.
 
-The task calls :func:`gentlerl.sweeps.run_point` on the node that runs it, so resuming is the
+The task calls :func:`gentlerl.apps.grid.run_point` on the node that runs it, so resuming is the
 local runner's: ``DONE`` runs are skipped before submitting, a run with a checkpoint continues
 from it (also when Ray retries a task whose node died). Run directories are written under
 ``--out`` by the nodes themselves: on a multi-node cluster ``--out`` must be a filesystem that
-every node mounts at the same path (NFS, ...), where :mod:`gentlerl.plot` then reads them.
+every node mounts at the same path (NFS, ...), where :mod:`gentlerl.analysis.runs` then reads them.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from __future__ import annotations
 import socket
 from collections.abc import Sequence
 
+from gentlerl.apps.grid import GridRun, pending, run_point
 from gentlerl.distributed.cluster import ClusterError, connect
-from gentlerl.sweeps import GridRun, pending, run_point
 
 
 def _run_on_node(run: GridRun, extra: Sequence[str]) -> int:
