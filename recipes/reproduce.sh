@@ -95,7 +95,7 @@ fi
 start=$(date +%s)
 dir="$out/$scale/$method"
 for sweep in ${sweeps_run//,/ }; do
-  python -m gentlerl.sweeps "$sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
+  python -m gentlerl sweep "$sweeps/$sweep.yaml" --scale "$scale" --workers "$workers" \
     --backend "$backend" "${address[@]}" --out "$dir" --set logging.wandb_mode=disabled \
     --set logging.progress=false "${extra[@]}" "${only[@]}"
   # The criteria's "final success": each run's last actor, 20 deterministic episodes; their rows
@@ -104,14 +104,14 @@ for sweep in ${sweeps_run//,/ }; do
   evals="$figures/$scale/$method/$sweep/final_eval.jsonl"
   : > "$evals"
   find "$dir/$sweep" -name checkpoint.pt | sort | xargs -P "$workers" -I{} sh -c \
-    'python -m gentlerl.evaluate "$1" --episodes 20 --seed 0 --json \
+    'python -m gentlerl evaluate "$1" --episodes 20 --seed 0 --json \
        --episodes-csv "$(dirname "$1")/final_eval_episodes.csv"' _ {} >> "$evals"
-  python -m gentlerl.plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
+  python -m gentlerl plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
   # Shipped policies: the final actor of each touch / fragile run (r+rf+rsp at the primary
   # lambda'_2 of docs/REPRODUCTION.md) as $policies/<task>/<variant>/seed<k>.pt.
-  python -m gentlerl.export "$dir/$sweep" --out "$policies"
+  python -m gentlerl export "$dir/$sweep" --out "$policies"
 done
-python -m gentlerl.claims "$dir" --final-evals "$figures/$scale/$method" \
+python -m gentlerl claims "$dir" --final-evals "$figures/$scale/$method" \
   --markdown "$figures/$scale/$method/claims.md"
 echo "reproduction ($scale, $method) took $(( ($(date +%s) - start) / 60 )) min;" \
   "figures in $figures/$scale/$method"
