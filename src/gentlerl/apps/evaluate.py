@@ -1,12 +1,13 @@
 """Evaluate a saved policy: ``gentlerl evaluate POLICY --episodes N [--task T] [--seed S]``.
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
-``best_policy.pt``, or a shipped policy of ``gentlerl export``). The actor runs without exploration noise in the env its run trained on (its
-``env.kwargs``, so the same hand calibration), or on another task with ``--task`` or another
-calibration with ``--calibration`` (docs/CALIBRATION.md). Prints the
-success rate, the broken rate and the median / p90 of the per-episode max impact (paper eq. 1, N); ``--episodes-csv`` also writes one
-row per episode (the columns of a run's ``eval_episodes.csv``, ``frames`` = the frames the
-policy trained for), which ``gentlerl plot`` reads as the final policy's episodes (paper Fig. 5).
+``best_policy.pt``, or a shipped policy of ``gentlerl export``). The actor runs without exploration
+noise in the env its run trained on (its ``env.kwargs``, so the same hand calibration), or on
+another task with ``--task`` or another calibration with ``--calibration`` (docs/CALIBRATION.md).
+Prints the success rate, the broken rate and the median / p90 of the per-episode max impact (paper
+eq. 1, N); ``--episodes-csv`` also writes one row per episode (the columns of a run's
+``eval_episodes.csv``, ``frames`` = the frames the policy trained for), which ``gentlerl plot``
+reads as the final policy's episodes (paper Fig. 5).
 """
 
 from __future__ import annotations

@@ -26,6 +26,8 @@ from gentlerl.config.layout import RunLayout
 
 @dataclass(frozen=True)
 class GridRun:
+    """One grid point: its ``key=value`` overrides and the run directory it trains in."""
+
     overrides: tuple[tuple[str, Any], ...]
     run_dir: Path
     #: A recipe script to run instead of the installed ``gentlerl-train`` app (on a Ray
@@ -33,6 +35,7 @@ class GridRun:
     script: Path | None = None
 
     def command(self, extra: Sequence[str] = ()) -> list[str]:
+        """The trainer's command line: the overrides, ``extra``, then ``run_dir``."""
         args = [f"{k}={_format(v)}" for k, v in self.overrides]
         # None: the installed app, wherever gentlerl is installed (no path to recipes/).
         app = [str(self.script)] if self.script else ["-m", "gentlerl.apps.train"]
