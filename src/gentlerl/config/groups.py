@@ -1,0 +1,258 @@
+"""The groups of a run's settings, each field declared once (:func:`~gentlerl.config.fields.setting`)
+with its help, choices, range and whether a resume may change it
+(:mod:`~gentlerl.config.rules`: the rules tying fields of a group together).
+
+Defaults are the ``cpu`` scale; :data:`~gentlerl.config.presets.SCALES` holds the others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from gentlerl.config.fields import setting
+
+COLLECTORS = ("single", "multi", "ray")
+WANDB_MODES = ("offline", "online", "disabled")
+#: Where scalars go besides the CSV files that gentlerl plot reads (TorchRL ``get_logger`` types).
+LOGGERS = ("csv", "wandb", "tensorboard")
+
+
+@dataclass
+class EnvConfig:
+    kwargs: dict[str, Any] = setting({}, "keyword arguments of make_env, e.g. {time_limit: 100}")
+    name: str | None = setting(
+        None,
+        "null: gentlerl's hand, task `task`; else a TorchRL env, 'dm_control:<domain>-<task>' "
+        "(e.g. dm_control:finger-spin; kwargs then go to DMControlEnv)",
+    )
+    force_adapter: str | None = setting(
+        None,
+        "transforms bringing an external env's contact reading to force_key in N, "
+        "[n_sites, n_channels] (null: the source's, dm_control_touch for dm_control; "
+        "names: gentlerl.envs.external.FORCE_ADAPTERS)",
+    )
+    force_key: str | None = setting(
+        None, "the force entry the gentleness rewards read (null: touch for the hand, else force)"
+    )
+    observation_keys: tuple[str, ...] | None = setting(
+        None, "external env: entries concatenated into observation (null: all but pixels)"
+    )
+
+    @property
+    def force(self) -> str:
+        """The force entry the rewards read: ``force_key``, else the hand's ``touch`` or the
+        external env's adapted ``force``."""
+        if self.force_key is not None:
+            return self.force_key
+        return "touch" if self.name is None else "force"
+
+
+#: Hands per collector env when ``collector.num_envs`` is null and the env factory batches: 4 hands
+#: on the 2 physics threads of a 2-core machine (benchmarks/RESULTS.md, "train_speed"). Not the
+#: default: the default recipe with 4 hands did not learn touch in 30k frames on 2 seeds, where one
+#: hand learns it by 20k (README, "Measured numbers").
+AUTO_NUM_ENVS = 4
+
+
+@dataclass
+class CollectorConfig:
+    kind: str = setting(
+        "single",
+        "one process, num_workers processes, or num_workers Ray actors",
+        choices=COLLECTORS,
+    )
+    num_workers: int = setting(
+        2, "env processes of the multi collector, Ray actors of the ray one", bounds=">= 1"
+    )
+    ray_address: str | None = setting(
+        None,
+        "ray: null starts a local Ray; auto, host:port or ray://host:port joins a cluster",
+        resumable=True,
+    )
+    cpus_per_worker: float = setting(
+        1.0, "ray: CPUs each remote collector reserves", bounds="> 0", resumable=True
+    )
+    memory_per_worker_gb: float = setting(
+        1.0, "ray: memory (GiB) each remote collector reserves", bounds="> 0", resumable=True
+    )
+    weight_sync_every: int = setting(
+        50, "ray: learner updates between weight pushes to the workers", bounds=">= 1",
+        resumable=True,
+    )  # fmt: skip
+    num_envs: int | None = setting(
+        1,
+        "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
+        f"{AUTO_NUM_ENVS} where the env factory batches (gentlerl's hand env), else 1",
+        bounds=">= 1",
+    )
+    env_threads: int | None = setting(
+        None,
+        "physics threads of a batched env (null: 1 per hand, at most 1 per core)",
+        bounds=">= 1",
+        resumable=True,
+    )
+    overlap: bool = setting(
+        False, "collect the next batch on a thread while the learner trains", resumable=True
+    )
+    total_frames: int = setting(
+        100_000, "env steps of the whole run", bounds=">= 1", resumable=True
+    )
+    frames_per_batch: int = setting(
+        200, "env steps per collector batch", bounds=">= 1", resumable=True
+    )
+    init_random_frames: int = setting(
+        10_000, "uniform random actions first (~1 % of them succeed)", bounds=">= 0",
+        resumable=True,
+    )  # fmt: skip
+    sigma: float = setting(
+        0.3, "std of the Gaussian exploration noise on actions in [-1, 1]", bounds=">= 0",
+        resumable=True,
+    )  # fmt: skip
+
+
+@dataclass
+class ReplayConfig:
+    buffer_size: int = setting(200_000, "n-step transitions kept", bounds=">= 1")
+    batch_size: int = setting(128, "transitions per learner update", bounds=">= 1", resumable=True)
+    n_steps: int = setting(5, "n of the n-step return", bounds=">= 1")
+    prioritized: bool = setting(True, "prioritised replay on the critic loss, else uniform")
+    alpha: float = setting(0.6, "priority exponent", bounds="[0, 1]", resumable=True)
+    beta: float = setting(
+        0.4, "initial importance-weight exponent, annealed to 1", bounds="[0, 1]", resumable=True
+    )
+
+
+@dataclass
+class LearnerConfig:
+    utd_ratio: float = setting(
+        0.25, "learner (and model) updates per env step", bounds=">= 0", resumable=True
+    )
+    lr_actor: float = setting(1e-4, "Adam step size of the actor", bounds="> 0", resumable=True)
+    lr_critic: float = setting(3e-4, "Adam step size of the critics", bounds="> 0", resumable=True)
+    gamma: float = setting(0.99, "discount per env step", bounds="(0, 1]")
+    target_update_period: int = setting(
+        100, "updates between hard target-network copies", bounds=">= 1", resumable=True
+    )
+    policy_noise: float = setting(
+        0.0, "TD3 target policy smoothing std (0: D4PG)", bounds=">= 0", resumable=True
+    )
+    episodic_intrinsic: bool = setting(
+        False, "cut the curiosity heads' bootstrap at termination too"
+    )
+    compile: bool = setting(
+        False, "torch.compile the learner's update (the first updates compile it)"
+    )
+    cudagraphs: bool = setting(
+        False, "replay the learner's update as a CUDA graph (CUDA learners only)"
+    )
+
+
+@dataclass
+class NetworkConfig:
+    actor_hidden: tuple[int, ...] = setting((256, 256), "hidden layer sizes of the actor")
+    critic_hidden: tuple[int, ...] = setting((256, 256), "hidden layer sizes of each critic")
+    num_atoms: int = setting(101, "atoms of each critic head's categorical support", bounds=">= 1")
+    v_min: float = setting(-10.0, "bottom of every head's support")
+    v_max: float = setting(10.0, "top of every head's support")
+    bounded_support: bool = setting(
+        True, "cap a head's v_max at its reward's bound (0 for penalties)"
+    )
+    # Measured at the cpu scale (touch, r+rf+rsp, paper hand): realised discounted penalty returns
+    # of -24 to -33 per episode start, outside [-10, 10]; r^sp ~1 per contact step. 1 x the
+    # discounted horizon (86.6 for 200 steps at gamma 0.99) covers both.
+    dense_reward_bound: float | None = setting(
+        1.0,
+        "per-step size of the dense rewards (penalty, curiosity): their heads span +-it x "
+        "(1 - gamma^T) / (1 - gamma); null: every head gets [v_min, v_max]",
+        bounds="> 0",
+    )
+
+
+@dataclass
+class GentlenessConfig:
+    lam: tuple[float, float] = setting(
+        (2.0, 2.0), "impact acceptability [lambda_1, lambda_2] (eq. 3)"
+    )
+    lam_prime: tuple[float, float] = setting(
+        (2.0, 2.0), "penalty-surprise gate [l'_1, l'_2] (eq. 8)"
+    )
+    reward_delay: int = setting(
+        2_000, "model updates before the curiosity rewards switch on", bounds=">= 0",
+        resumable=True,
+    )  # fmt: skip
+    dynamics_target_period: int = setting(
+        500, "model updates between dynamics target copies", bounds=">= 1", resumable=True
+    )
+    penalty_target_period: int = setting(
+        100, "model updates between penalty target copies", bounds=">= 1", resumable=True
+    )
+    ensemble_size: int = setting(5, "members of each model ensemble", bounds=">= 1")
+    model_hidden: int = setting(128, "units of each of the models' 3 hidden layers", bounds=">= 1")
+    model_batch_size: int = setting(
+        64, "transitions per ensemble member and model update", bounds=">= 1", resumable=True
+    )
+    model_buffer_size: int = setting(
+        100_000, "1-step transitions kept for the models", bounds=">= 1"
+    )
+    lr_model: float = setting(1e-3, "Adam step size of the models", bounds="> 0", resumable=True)
+    surprise_scale: float = setting(
+        1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)", bounds=">= 0"
+    )
+    # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
+    # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
+    # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
+    dynamics_surprise_scale: float = setting(
+        0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0"
+    )
+    # Measured (docs/REPRODUCTION.md, fifth amendment): with supports per head and r^sp
+    # recomputed at sampling, the fragile probe ended at 1.00 without a floor and 0.85 with 0;
+    # the NLL of contact steps stayed near +1 at 30k frames either way.
+    surprise_nll_floor: float | None = setting(
+        None, "floor of the penalty-surprise NLL (null: eq. 8)"
+    )
+    recompute_surprise: bool = setting(
+        True, "recompute r^sp of each sampled n-step transition with the current target model"
+    )
+    icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")
+
+
+@dataclass
+class LoggingConfig:
+    eval_every_frames: int = setting(
+        5_000, "env steps between evaluations", bounds=">= 1", resumable=True
+    )
+    eval_episodes: int = setting(
+        10, "noise-free episodes per evaluation", bounds=">= 0", resumable=True
+    )
+    log_every_updates: int = setting(
+        200, "updates averaged into one row of train/ scalars", bounds=">= 1", resumable=True
+    )
+    checkpoint_every_frames: int = setting(
+        10_000, "env steps between checkpoints", bounds=">= 1", resumable=True
+    )
+    checkpoint_buffer: bool = setting(
+        True, "keep the replay buffers in checkpoint.pt (false: much smaller; resume refills them)"
+    )
+    logger: str = setting(
+        "csv", "csv only, or csv and wandb / tensorboard (TorchRL get_logger)", choices=LOGGERS
+    )
+    wandb_mode: str = setting(
+        "offline",
+        "wandb mode with logger=wandb (online prints its link)",
+        choices=WANDB_MODES,
+        resumable=True,
+    )
+    wandb_project: str = setting("gentlerl", "wandb project", resumable=True)
+    progress: bool = setting(True, "show a progress bar", resumable=True)
+
+
+GROUPS = {
+    "env": EnvConfig,
+    "collector": CollectorConfig,
+    "replay": ReplayConfig,
+    "learner": LearnerConfig,
+    "network": NetworkConfig,
+    "gentleness": GentlenessConfig,
+    "logging": LoggingConfig,
+}

@@ -1,0 +1,75 @@
+"""The rules tying fields of one group together, beyond each field's declared range: one line per
+problem, naming the fields."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from gentlerl.config.groups import CollectorConfig, GentlenessConfig, NetworkConfig, ReplayConfig
+
+
+def collector_problems(col: CollectorConfig) -> list[str]:
+    """The overlap thread needs the single collector; a batch splits evenly over ``num_envs``
+    hands, which only the single collector batches."""
+    problems = []
+    if col.overlap and col.kind != "single":
+        problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")
+    if col.num_envs is not None and col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
+        problems.append(
+            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
+            f"collector.num_envs={col.num_envs}"
+        )
+    if col.kind == "multi" and col.num_envs not in (None, 1):
+        problems.append(
+            f"collector.num_envs={col.num_envs} with collector.kind=multi: batched envs run in "
+            "the single collector (num_envs=1 with multi; scale with num_workers)"
+        )
+    return problems
+
+
+def replay_problems(replay: ReplayConfig) -> list[str]:
+    """The buffer holds at least one batch."""
+    if replay.buffer_size < replay.batch_size:
+        return [
+            f"replay.buffer_size={replay.buffer_size} must be >= replay.batch_size="
+            f"{replay.batch_size} (no update could ever sample a batch)"
+        ]
+    return []
+
+
+def network_problems(net: NetworkConfig) -> list[str]:
+    """Layer sizes, and a support with its bottom below its top (below 0 when penalties top at
+    0)."""
+    problems = [
+        f"network.{name}={sizes} must be a non-empty list of sizes >= 1"
+        for name, sizes in (
+            ("actor_hidden", net.actor_hidden),
+            ("critic_hidden", net.critic_hidden),
+        )
+        if not sizes or min(sizes) < 1
+    ]
+    if not net.v_min < net.v_max:
+        problems.append(f"network.v_min={net.v_min} must be < network.v_max={net.v_max}")
+    if net.bounded_support and not net.v_min < 0:
+        problems.append(f"network.v_min={net.v_min} must be < 0 with bounded_support (v_max 0)")
+    return problems
+
+
+def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
+    """Both gates ``[lambda_1, lambda_2]`` of eq. 3 and 8: a positive scale, a non-negative
+    offset."""
+    return [
+        f"gentleness.{name}={value} must be [lambda_1 > 0, lambda_2 >= 0]"
+        for name, value in (("lam", gentleness.lam), ("lam_prime", gentleness.lam_prime))
+        if len(value) != 2 or value[0] <= 0 or value[1] < 0
+    ]
+
+
+#: The rules of each group beyond its fields' declared ranges, by group name.
+GROUP_RULES: dict[str, Callable[[Any], list[str]]] = {
+    "collector": collector_problems,
+    "replay": replay_problems,
+    "network": network_problems,
+    "gentleness": gentleness_problems,
+}
