@@ -11,12 +11,39 @@ The reward-model transforms run in the learner on the stacked batch.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import torch
-from torchrl.envs import EnvBase
+from gentlerl.config.fields import declared_problems, type_problems
+from gentlerl.config.groups import CollectorConfig
+from gentlerl.distributed.cluster import no_cluster, parse_address, preflight, ray_init_config
 
-from gentlerl.distributed.cluster import no_cluster, preflight, ray_init_config
+if TYPE_CHECKING:
+    import torch
+    from torchrl.envs import EnvBase
+
+
+def ray_problems(col: CollectorConfig) -> list[str]:
+    """The Ray collector's rules beyond each field's declared range (one line per problem):
+    with ``kind=ray`` a batch splits evenly over the workers, each stepping one hand; a cluster
+    address must parse, whatever the kind."""
+    problems = []
+    if col.kind == "ray" and col.num_workers >= 1 and col.frames_per_batch % col.num_workers:
+        problems.append(
+            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
+            f"collector.num_workers={col.num_workers} with collector.kind=ray (each Ray worker "
+            "collects an equal share of a batch)"
+        )
+    if col.kind == "ray" and col.num_envs not in (None, 1):
+        problems.append(
+            f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "
+            "(num_envs=1); scale with num_workers"
+        )
+    if col.ray_address not in (None, "auto"):
+        try:
+            parse_address(col.ray_address)
+        except ValueError as err:
+            problems.append(str(err))
+    return problems
 
 
 def make_ray_collector(
@@ -35,19 +62,25 @@ def make_ray_collector(
     Ray is started locally (``num_workers x cpus_per_worker`` CPUs) when ``address`` is None and
     no Ray runs in this process; ``"auto"``, ``host:port`` or ``ray://host:port`` joins a cluster.
     Each worker reserves ``cpus_per_worker`` CPUs and ``memory_per_worker_gb`` GiB. The collector's
-    ``shutdown()`` kills the workers and stops a Ray it started.
+    ``shutdown()`` kills the workers and stops a Ray it started. ``total_frames`` and
+    ``init_random_frames`` count what is left of the run; the other settings are checked first,
+    as ``collector`` settings (their declarations and :func:`ray_problems`): a ``ValueError``.
     """
     num_workers = len(env_factories)
-    if frames_per_batch % num_workers:
-        raise ValueError(
-            f"frames_per_batch={frames_per_batch} must be a multiple of num_workers={num_workers} "
-            "(each Ray worker collects an equal share of a batch)"
-        )
-    if not cpus_per_worker > 0 or not memory_per_worker_gb > 0:
-        raise ValueError(
-            f"cpus_per_worker={cpus_per_worker} and memory_per_worker_gb={memory_per_worker_gb} "
-            "must be > 0"
-        )
+    settings = CollectorConfig(
+        kind="ray",
+        num_workers=num_workers,
+        ray_address=address,
+        cpus_per_worker=cpus_per_worker,
+        memory_per_worker_gb=memory_per_worker_gb,
+        frames_per_batch=frames_per_batch,
+    )
+    prefix = "collector."
+    problems = type_problems(settings, prefix) or (
+        declared_problems(settings, prefix) + ray_problems(settings)
+    )
+    if problems:
+        raise ValueError("invalid Ray collector settings:\n  - " + "\n  - ".join(problems))
     preflight(address)
     from torchrl.collectors import Collector
 
