@@ -50,8 +50,7 @@ from gentlerl.agent.learner import Learner
 from gentlerl.models import FusedCritic, PenaltyModel, make_actor, make_critic
 from gentlerl.models.actor import paper_trunk
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
-from gentlerl.training.config import preset_config
-from gentlerl.training.schema import TrainConfig
+from gentlerl.training.config import TrainConfig, preset_config
 
 OBS, ACT = 63, 20
 #: The paper scale's heads: all four reward components of the paper's variants.

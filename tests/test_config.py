@@ -87,7 +87,7 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"bach_size": 3}, "unknown config field(s) ['bach_size']"),
         ({"replay": {"bach_size": 3}}, "unknown config field replay.'bach_size'"),
         ({"replay": 3}, "config group 'replay' takes a mapping, got 3"),
-        ({"collector": {"num_envs": 0}}, "collector.num_envs=0 must be >= 1 (or null: automatic)"),
+        ({"collector": {"num_envs": 0}}, "collector.num_envs=0 must be >= 1 (or null)"),
         ({"collector": {"num_envs": 3}}, "collector.frames_per_batch=200 must be a multiple of collector.num_envs=3"),
         ({"collector": {"num_envs": 4, "kind": "multi"}}, "collector.num_envs=4 with collector.kind=multi"),
         ({"collector": {"env_threads": 0}}, "collector.env_threads=0 must be >= 1"),

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import torch
 from torchrl.envs.transforms import Transform
 from torchrl.objectives.common import LossModule
 
 from gentlerl import keys
+from gentlerl.config import GentlenessConfig
 from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, ICMLoss
 from gentlerl.transforms import (
@@ -25,9 +25,6 @@ from gentlerl.transforms import (
     PenaltySurprise,
     TorquePenalty,
 )
-
-if TYPE_CHECKING:
-    from gentlerl.training.config import GentlenessConfig
 
 
 @dataclass

@@ -13,10 +13,10 @@ from torchrl.envs import EnvBase, TransformedEnv
 
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
+from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.training.config import CollectorConfig, TrainConfig
 from gentlerl.training.logging import episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
-from gentlerl.training.schema import AUTO_NUM_ENVS
 from gentlerl.transforms import ImpactPenalty
 
 EnvFactory = Callable[..., EnvBase]
@@ -76,7 +76,7 @@ def takes_num_envs(env_factory: EnvFactory) -> bool:
 
 def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> EnvFactory:
     """``env_factory`` for the collector: ``cfg.num_envs`` hands per env when above 1 (null:
-    :data:`~gentlerl.training.schema.AUTO_NUM_ENVS` for the single collector where the factory
+    :data:`~gentlerl.config.groups.AUTO_NUM_ENVS` for the single collector where the factory
     batches and they divide ``frames_per_batch``, else 1)."""
     num_envs = cfg.num_envs
     if num_envs is None:

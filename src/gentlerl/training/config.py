@@ -1,18 +1,20 @@
-"""Every hyper-parameter of a run, in groups (:mod:`~gentlerl.training.schema`); presets;
-up-front validation.
+"""A training run's config: :class:`TrainConfig` (what the run is, where it goes, and the groups
+of :mod:`gentlerl.config`), built from a scale preset and overrides, and validated up front.
 
-Defaults are the ``cpu`` scale; :data:`~gentlerl.training.presets.SCALES` holds the presets,
-applied under user overrides by :func:`make_config`.
+Each field is declared once (:func:`~gentlerl.config.fields.setting`): :func:`validate` reads the
+declarations for types, choices and ranges, then applies the rules that tie fields together.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from typing import Any
 
-from gentlerl.training.config_checks import consistency_problems, type_problems
-from gentlerl.training.presets import SCALES
-from gentlerl.training.schema import (
+from gentlerl.config import fields
+from gentlerl.config.fields import get, setting
+from gentlerl.config.groups import (
     COLLECTORS,
     GROUPS,
     WANDB_MODES,
@@ -23,10 +25,10 @@ from gentlerl.training.schema import (
     LoggingConfig,
     NetworkConfig,
     ReplayConfig,
-    TrainConfig,
-    get,
-    iter_fields,
 )
+from gentlerl.config.presets import SCALES
+from gentlerl.config.rules import GROUP_RULES
+from gentlerl.distributed.collector import ray_problems
 
 __all__ = [
     "COLLECTORS",
@@ -45,8 +47,68 @@ __all__ = [
     "group_flat_config",
     "iter_fields",
     "make_config",
+    "preset_config",
     "validate",
 ]
+
+
+def _task_names() -> list[str]:
+    from gentlerl.envs import TASKS
+
+    return list(TASKS)
+
+
+def _variant_names() -> list[str]:
+    from gentlerl.agent.variants import VARIANTS
+
+    return list(VARIANTS)
+
+
+def _scale_names() -> list[str]:
+    return list(SCALES)
+
+
+@dataclass
+class TrainConfig:
+    """A training run: what it is (task, variant, seed, scale), where it goes, and its groups."""
+
+    task: str = setting("touch", "the env task", choices=_task_names)
+    variant: str = setting(
+        "r+rf+rsp", "reward components, one critic head each", choices=_variant_names
+    )
+    seed: int = setting(0, "seeds torch, numpy, python, the envs and the models")
+    scale: str = setting(
+        "cpu", "preset applied under the overrides", choices=_scale_names, resumable=True
+    )
+    run_dir: str = setting("runs/default", "where the run writes everything", resumable=True)
+    resume: bool | str = setting(
+        False, "continue run_dir's run: true, false (start), auto (either)", resumable=True
+    )
+    num_threads: int = setting(
+        1, "torch threads (the env and workers need the other cores)", bounds=">= 1",
+        resumable=True,
+    )  # fmt: skip
+    env: EnvConfig = field(default_factory=EnvConfig)
+    collector: CollectorConfig = field(default_factory=CollectorConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    gentleness: GentlenessConfig = field(default_factory=GentlenessConfig)
+    logging: LoggingConfig = field(default_factory=LoggingConfig)
+
+    @property
+    def reward_keys(self) -> list[str]:
+        from gentlerl.agent.variants import reward_keys
+
+        return reward_keys(self.variant)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def iter_fields() -> Iterator[tuple[str, dataclasses.Field]]:
+    """``("group.name" or "name", field)`` for every leaf field of :class:`TrainConfig`."""
+    return fields.iter_fields(TrainConfig)
 
 
 def _merge(base: dict[str, Any], update: dict[str, Any], where: str = "") -> None:
@@ -140,126 +202,61 @@ def _with_earlier_behaviour(grouped: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-_POSITIVE = (
-    "collector.total_frames collector.frames_per_batch collector.num_workers "
-    "collector.weight_sync_every "
-    "replay.batch_size "
-    "replay.buffer_size replay.n_steps network.num_atoms learner.target_update_period "
-    "gentleness.dynamics_target_period gentleness.penalty_target_period gentleness.ensemble_size "
-    "gentleness.model_hidden gentleness.model_batch_size gentleness.model_buffer_size "
-    "logging.eval_every_frames logging.log_every_updates logging.checkpoint_every_frames "
-    "num_threads"
-).split()
-_NON_NEGATIVE = (
-    "collector.init_random_frames gentleness.reward_delay logging.eval_episodes collector.sigma "
-    "learner.policy_noise learner.utd_ratio gentleness.surprise_scale "
-    "gentleness.dynamics_surprise_scale gentleness.icm_eta"
-).split()
-
-
 def validate(cfg: TrainConfig) -> None:
-    """Raise one ``ValueError`` listing every problem, before anything starts."""
-    problems = type_problems(cfg)
+    """Raise one ``ValueError`` listing every problem, before anything starts: types, then each
+    field's declared choices and range, then the rules tying fields together."""
+    problems = fields.type_problems(cfg) + _resume_problems(cfg)
     if problems:  # the range checks below compare numbers
         raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
-    problems = consistency_problems(cfg)
-    for name, f in iter_fields():
-        choices = f.metadata.get("choices")
-        if choices is not None:
-            valid = list(choices() if callable(choices) else choices)
-            if get(cfg, name) not in valid:
-                problems.append(f"{name}={get(cfg, name)!r} is not one of {valid}")
-    for name in _POSITIVE:
-        if get(cfg, name) < 1:
-            problems.append(f"{name}={get(cfg, name)} must be >= 1")
-    for name in _NON_NEGATIVE:
-        if not get(cfg, name) >= 0:
-            problems.append(f"{name}={get(cfg, name)} must be >= 0")
-    for name in ("learner.lr_actor", "learner.lr_critic", "gentleness.lr_model"):
-        if not get(cfg, name) > 0:
-            problems.append(f"{name}={get(cfg, name)} must be > 0")
-    for name in ("network.actor_hidden", "network.critic_hidden"):
-        if not get(cfg, name) or min(get(cfg, name)) < 1:
-            problems.append(f"{name}={get(cfg, name)} must be a non-empty list of sizes >= 1")
-    for name in ("gentleness.lam", "gentleness.lam_prime"):
-        value = get(cfg, name)
-        if len(value) != 2 or value[0] <= 0 or value[1] < 0:
-            problems.append(f"{name}={value} must be [lambda_1 > 0, lambda_2 >= 0]")
-    if not 0.0 < cfg.learner.gamma <= 1.0:
-        problems.append(f"learner.gamma={cfg.learner.gamma} must be in (0, 1]")
-    net = cfg.network
-    if not net.v_min < net.v_max:
-        problems.append(f"network.v_min={net.v_min} must be < network.v_max={net.v_max}")
-    if net.bounded_support and not net.v_min < 0:
-        problems.append(f"network.v_min={net.v_min} must be < 0 with bounded_support (v_max 0)")
-    if net.dense_reward_bound is not None and not 0 < net.dense_reward_bound < float("inf"):
-        problems.append(
-            f"network.dense_reward_bound={net.dense_reward_bound} must be a finite number > 0 "
-            "(or null: [v_min, v_max] for every head)"
-        )
-    col = cfg.collector
-    if col.overlap and col.kind != "single":
-        problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")
-    if col.env_threads is not None and col.env_threads < 1:
-        problems.append(f"collector.env_threads={col.env_threads} must be >= 1 (or null)")
-    if col.num_envs is not None and col.num_envs < 1:
-        problems.append(f"collector.num_envs={col.num_envs} must be >= 1 (or null: automatic)")
-    if col.num_envs is not None and col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
-        problems.append(
-            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
-            f"collector.num_envs={col.num_envs}"
-        )
-    problems += _ray_problems(col)
-    problems += _env_problems(cfg.env)
-    replay = cfg.replay
-    if not 0.0 <= replay.alpha <= 1.0 or not 0.0 <= replay.beta <= 1.0:
-        problems.append(f"replay.alpha={replay.alpha} and beta={replay.beta} must be in [0, 1]")
+    problems = fields.declared_problems(cfg) + _run_problems(cfg)
+    for name, rule in GROUP_RULES.items():
+        problems += rule(getattr(cfg, name))
+    problems += ray_problems(cfg.collector)
+    problems += _env_problems(cfg)
     if problems:
         raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
 
 
-def _ray_problems(col: CollectorConfig) -> list[str]:
-    problems = []
-    for name in ("cpus_per_worker", "memory_per_worker_gb"):
-        if not getattr(col, name) > 0:
-            problems.append(f"collector.{name}={getattr(col, name)} must be > 0")
-    if col.kind == "ray" and col.num_workers >= 1 and col.frames_per_batch % col.num_workers:
-        problems.append(
-            f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
-            f"collector.num_workers={col.num_workers} with collector.kind=ray"
-        )
-    if col.kind == "multi" and col.num_envs not in (None, 1):
-        problems.append(
-            f"collector.num_envs={col.num_envs} with collector.kind=multi: batched envs run in "
-            "the single collector (num_envs=1 with multi; scale with num_workers)"
-        )
-    if col.kind == "ray" and col.num_envs not in (None, 1):
-        problems.append(
-            f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "
-            "(num_envs=1); scale with num_workers"
-        )
-    if col.ray_address not in (None, "auto"):
-        from gentlerl.distributed.cluster import parse_address
+def _resume_problems(cfg: TrainConfig) -> list[str]:
+    """true: continue (needs the checkpoint); false: start (refuses an existing run); auto: either."""
+    if isinstance(cfg.resume, bool) or cfg.resume == "auto":
+        return []
+    return [f"resume={cfg.resume!r} must be true, false or 'auto'"]
 
-        try:
-            parse_address(col.ray_address)
-        except ValueError as err:
-            problems.append(str(err))
+
+def _run_problems(cfg: TrainConfig) -> list[str]:
+    """A seed numpy takes and a run directory that is not the working one."""
+    problems = []
+    if not 0 <= cfg.seed < 2**32:
+        problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
+    if not cfg.run_dir.strip():
+        problems.append(f"run_dir={cfg.run_dir!r} must name a directory (empty: the working one)")
     return problems
 
 
-def _env_problems(env: EnvConfig) -> list[str]:
-    """``env.name`` (a known external env), ``env.force_adapter`` (a known adapter, only with an
-    external env) and ``env.observation_keys`` (only with an external env)."""
+def _env_problems(cfg: TrainConfig) -> list[str]:
+    """``env.kwargs`` the hand's task accepts (listing the valid ones), ``env.name`` (a known
+    external env), ``env.force_adapter`` (a known adapter, only with an external env) and
+    ``env.observation_keys`` (only with an external env)."""
     from gentlerl.envs.external import FORCE_ADAPTERS, check_name
+    from gentlerl.envs.factory import TASKS, env_kwarg_names
 
+    env = cfg.env
     if env.name is None:
-        return [
+        problems = [
             f"env.{name}={getattr(env, name)!r} applies to an external env only (set env.name)"
             for name in ("force_adapter", "observation_keys")
             if getattr(env, name) is not None
         ]
-    problems = check_name(env.name)
+        if cfg.task in TASKS:
+            valid = env_kwarg_names(cfg.task)
+            unknown = sorted(set(env.kwargs) - set(valid))
+            if unknown:
+                problems.append(
+                    f"env.kwargs {unknown} are not keywords of task {cfg.task!r}; valid: {valid}"
+                )
+        return problems
+    problems = check_name(env.name)  # the kwargs go to the external env
     if env.force_adapter is not None and env.force_adapter not in FORCE_ADAPTERS:
         problems.append(
             f"env.force_adapter={env.force_adapter!r} is not one of {sorted(FORCE_ADAPTERS)}"

@@ -3,9 +3,9 @@ changed since, and every reward and loss it produces.
 
 Resuming (``resume``): ``false`` refuses a run directory that already holds a run, ``true`` needs
 its checkpoint, ``"auto"`` continues it when there is one and starts otherwise. *Structural*
-fields (everything outside :data:`SAFE_TO_CHANGE`: task, variant, seed, network sizes, supports,
-reward parameters, buffer layout, env) must equal the checkpoint's; the safe ones may change and
-each change is appended to ``config_history.yaml`` in the run directory.
+fields (those not declared ``resumable``: task, variant, seed, network sizes, supports, reward
+parameters, buffer layout, env) must equal the checkpoint's; the :data:`SAFE_TO_CHANGE` ones may
+change and each change is appended to ``config_history.yaml`` in the run directory.
 """
 
 from __future__ import annotations
@@ -21,29 +21,14 @@ from typing import Any
 import torch
 import yaml
 
+from gentlerl.config.fields import resumable
+from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
 from gentlerl.training.checkpoint import load_checkpoint
-from gentlerl.training.config import group_flat_config
+from gentlerl.training.config import TrainConfig, group_flat_config
 
-CONFIG_HISTORY = "config_history.yaml"
-
-#: Fields a resumed run may change: how long and how fast it goes on, and what it logs. The rest
-#: shape the saved networks and buffers or the rewards already stored in them.
-SAFE_TO_CHANGE = frozenset(
-    (
-        "run_dir resume scale num_threads "
-        "collector.total_frames collector.frames_per_batch collector.init_random_frames "
-        "collector.sigma collector.overlap collector.env_threads collector.ray_address "
-        "collector.cpus_per_worker collector.memory_per_worker_gb collector.weight_sync_every "
-        "replay.batch_size replay.alpha replay.beta "
-        "learner.utd_ratio learner.lr_actor learner.lr_critic learner.target_update_period "
-        "learner.policy_noise "
-        "gentleness.reward_delay gentleness.dynamics_target_period "
-        "gentleness.penalty_target_period gentleness.model_batch_size gentleness.lr_model "
-        "logging.eval_every_frames logging.eval_episodes logging.log_every_updates "
-        "logging.checkpoint_every_frames logging.wandb_mode logging.wandb_project "
-        "logging.progress"
-    ).split()
-)
+#: Fields a resumed run may change (declared ``resumable``): how long and how fast it goes on, and
+#: what it logs. The rest shape the saved networks and buffers or the rewards already stored in them.
+SAFE_TO_CHANGE = resumable(TrainConfig)
 #: Not settings of the run: never recorded as changes.
 _LOCATION = frozenset({"run_dir", "resume"})
 
@@ -89,7 +74,7 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
     """
     run_dir, resume = checkpoint.parent, cfg.resume
     if resume is False:
-        if checkpoint.exists() or (run_dir / "logs").exists():
+        if checkpoint.exists() or RunLayout(run_dir).has_started():
             raise ValueError(
                 f"run_dir={str(run_dir)!r} already holds a run; pass resume=true to continue it "
                 "(resume=auto: continue it or start), or choose another run_dir"
@@ -137,7 +122,7 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
     changes = {n: v for n, v in config_changes(saved, now).items() if n not in _LOCATION}
     if not changes:
         return []
-    path = run_dir / CONFIG_HISTORY
+    path = RunLayout(run_dir).config_history
     history = _history(path)
     entry = {n: {"was": old, "now": new} for n, (old, new) in changes.items()}
     history.append({"resumed_at_frame": int(frames), "changed": entry})
