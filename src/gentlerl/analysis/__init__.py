@@ -6,6 +6,7 @@
 - :mod:`~gentlerl.analysis.curves` and :mod:`~gentlerl.analysis.summary`: learning curves and the
   summary table of a set of runs;
 - :mod:`~gentlerl.analysis.figures`: the ``gentlerl plot`` command (figures and summary files);
-- :mod:`~gentlerl.analysis.claims`: the ``gentlerl claims`` command (the paper's claims judged on a
-  grid of runs).
+- :mod:`~gentlerl.analysis.criteria`: the six claims' pre-registered criteria, a verdict each;
+- :mod:`~gentlerl.analysis.claims`: the ``gentlerl claims`` command (the criteria judged on grids
+  of runs).
 """
