@@ -13,7 +13,7 @@ import os
 import socket
 from pathlib import Path
 
-LOCK_FILE = ".lock"
+from gentlerl.config.layout import RunLayout
 
 
 class RunLockedError(OSError):
@@ -29,7 +29,7 @@ class RunLock:
     """
 
     def __init__(self, run_dir: str | os.PathLike) -> None:
-        self.path = Path(run_dir) / LOCK_FILE
+        self.path = RunLayout(run_dir).lock
         self._fd: int | None = None
         self._made_dir = False
 
