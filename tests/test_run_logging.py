@@ -4,10 +4,11 @@ checkpoints without the replay buffers."""
 import pytest
 import torch
 
+from gentlerl.config.layout import CHECKPOINT
 from gentlerl.training import make_config
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.logging import RunLogger, progress_postfix
-from gentlerl.training.loop import CHECKPOINT, Trainer, train
+from gentlerl.training.loop import Trainer, train
 from tests.test_training_loop import read_scalar, tiny_config, toy_env
 
 

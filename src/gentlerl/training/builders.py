@@ -1,4 +1,6 @@
-"""What a runner needs besides the agent (TorchRL sota-implementations style): env, collector."""
+"""What a runner builds (TorchRL sota-implementations style): the process set-up, the agent
+(from a probed env), the collector, the evaluation env and the logger.
+"""
 
 from __future__ import annotations
 
@@ -6,17 +8,27 @@ import inspect
 import warnings
 from collections.abc import Callable
 from functools import partial
+from typing import Any, NamedTuple
 
 import torch
+import yaml
 from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.data import ReplayBuffer
+from torchrl.data.replay_buffers.scheduler import LinearScheduler
 from torchrl.envs import EnvBase, TransformedEnv
 
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
+from gentlerl.agent.builder import AgentBuilder
+from gentlerl.agent.learner import Learner
 from gentlerl.config.groups import AUTO_NUM_ENVS
+from gentlerl.config.layout import RunLayout
+from gentlerl.data import NStepWriter
+from gentlerl.training import guards
 from gentlerl.training.config import CollectorConfig, TrainConfig
-from gentlerl.training.logging import episode_transforms
+from gentlerl.training.logging import RunLogger, episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
+from gentlerl.training.seeding import seed_everything
 from gentlerl.transforms import ImpactPenalty
 
 EnvFactory = Callable[..., EnvBase]
@@ -52,6 +64,18 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
     from gentlerl.envs import make_env
 
     return partial(make_env, cfg.task, seed=cfg.seed, **cfg.env.kwargs)
+
+
+def prepare_process(cfg: TrainConfig) -> None:
+    """This process's side of a run: torch's threads, every global seed, and with
+    ``collector.kind="ray"`` the Ray cluster joined (Ray installed, cluster reachable) before
+    anything is written."""
+    torch.set_num_threads(cfg.num_threads)
+    seed_everything(cfg.seed)
+    if cfg.collector.kind == "ray":
+        from gentlerl.distributed.cluster import join_cluster
+
+        join_cluster(cfg.collector.ray_address)
 
 
 def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
@@ -137,6 +161,32 @@ def check_env_keys(env: EnvBase, rewards: IntrinsicRewards) -> None:
         )
 
 
+class AgentParts(NamedTuple):
+    """What a run trains, as :func:`make_agent` builds it."""
+
+    builder: AgentBuilder
+    rewards: IntrinsicRewards
+    learner: Learner
+    writer: NStepWriter
+    rb: ReplayBuffer
+    beta_schedule: LinearScheduler | None
+
+
+def make_agent(cfg: TrainConfig, env_factory: EnvFactory) -> AgentParts:
+    """The agent of ``cfg``, sized from one probe env of ``env_factory`` whose keys are checked
+    first (:func:`check_env_keys`); the beta schedule spans the run's ``utd_ratio`` updates."""
+    probe = env_factory()
+    builder = AgentBuilder(cfg, probe)
+    rewards = builder.make_intrinsic_rewards()
+    check_env_keys(probe, rewards)
+    probe.close()
+    learner = builder.make_learner()
+    col = cfg.collector
+    updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
+    writer, rb, beta_schedule = builder.make_replay(updates, rewards.window_keys)
+    return AgentParts(builder, rewards, learner, writer, rb, beta_schedule)
+
+
 def make_collector(
     cfg: CollectorConfig,
     env_factory: EnvFactory,
@@ -184,6 +234,26 @@ def make_collector(
     return MultiSyncCollector(factories, policy, cat_results="stack", **common)
 
 
+def make_run_collector(
+    cfg: TrainConfig, env_factory: EnvFactory, policy: torch.nn.Module, frames: int
+) -> Collector | MultiSyncCollector | PrefetchCollector:
+    """:func:`make_collector` for the rest of a run that has collected ``frames``: seeded with
+    ``cfg.seed + frames``, Ray workers starting from ``policy``'s current weights."""
+    col, seed = cfg.collector, cfg.seed + frames
+    random_left = max(col.init_random_frames - frames, 0)
+    collector = make_collector(
+        col, env_factory, policy, col.total_frames - frames, random_left, seed
+    )
+    try:
+        collector.set_seed(seed)
+        if col.kind == "ray":
+            collector.update_policy_weights_()
+    except BaseException:
+        collector.shutdown()
+        raise
+    return collector
+
+
 def make_eval_env(
     env_factory: EnvFactory, seed: int, episodes: int = 1, force_key: str = keys.TOUCH
 ) -> EnvBase:
@@ -197,3 +267,16 @@ def make_eval_env(
     )
     env.set_seed(seed)
     return env
+
+
+def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
+    """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
+    config = guards.plain(cfg.to_dict())
+    layout.config.write_text(yaml.safe_dump(config))
+    return config
+
+
+def make_logger(cfg: TrainConfig, config: dict[str, Any]) -> RunLogger:
+    """The run's :class:`~gentlerl.training.logging.RunLogger` (``config`` goes to wandb)."""
+    log = cfg.logging
+    return RunLogger(cfg.run_dir, config, log.wandb_mode, log.wandb_project, log.logger)

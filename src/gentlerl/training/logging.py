@@ -10,6 +10,8 @@ from __future__ import annotations
 import csv
 import math
 import os
+import time
+from collections import deque
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,8 +21,10 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import RewardSum, StepCounter, Transform
 from torchrl.record.loggers import Logger, get_logger
+from tqdm.auto import tqdm
 
 from gentlerl import keys
+from gentlerl.config.layout import LOGS, RunLayout
 
 EVAL_COLUMNS = ("frames", "episode", "success", "broken", "max_impact", "return")
 
@@ -42,7 +46,8 @@ class RunLogger:
         logger: str = "csv",
     ) -> None:
         self.run_dir = Path(run_dir)
-        self.loggers: list[Logger] = [get_logger("csv", str(self.run_dir), "logs")]
+        self.layout = RunLayout(run_dir)
+        self.loggers: list[Logger] = [get_logger("csv", str(self.run_dir), LOGS)]
         if logger == "wandb" and wandb_mode != "disabled":
             import wandb
 
@@ -78,21 +83,19 @@ class RunLogger:
 
     def truncate_after(self, frames: int) -> None:
         """Drop rows logged after ``frames`` (a resumed run re-collects them; no duplicated steps)."""
-        for path in [
-            *self.run_dir.glob("logs/scalars/**/*.csv"),
-            self.run_dir / "eval_episodes.csv",
-        ]:
+        episodes = self.layout.eval_episodes
+        for path in [*self.layout.scalars.glob("**/*.csv"), episodes]:
             if not path.is_file():
                 continue
             lines = path.read_text().splitlines(keepends=True)
-            header = lines[:1] if path.name == "eval_episodes.csv" else []
+            header = lines[:1] if path == episodes else []
             kept = [row for row in lines[len(header) :] if int(row.split(",", 1)[0]) <= frames]
             tmp = path.with_suffix(".csv.tmp")
             tmp.write_text("".join(header + kept))
             os.replace(tmp, path)
 
     def log_eval_episodes(self, frames: int, episodes: list[dict[str, float]]) -> None:
-        path = self.run_dir / "eval_episodes.csv"
+        path = self.layout.eval_episodes
         new = not path.exists()
         with path.open("a", newline="") as f:
             writer = csv.writer(f)
@@ -203,3 +206,31 @@ def progress_postfix(
         "max_impact": f"{mean('max_impact'):.2f}N",
         "eval": "-" if last is None else f"{last:.2f}",
     }
+
+
+class Progress:
+    """The loop's progress: the statistics of the episodes it collects (the last 20 kept for the
+    bar), its env steps per second, and its tqdm bar (shown with ``enabled``)."""
+
+    def __init__(self, reward_keys: list[str], total: int, frames: int, enabled: bool) -> None:
+        self.episodes = EpisodeStats(reward_keys)
+        self.recent: deque[dict[str, float]] = deque(maxlen=20)
+        self.bar = tqdm(total=total, initial=frames, disable=not enabled, unit="frame")
+        self._start, self._start_frames = time.perf_counter(), frames
+
+    def finished_episodes(self, batch: TensorDictBase) -> list[dict[str, float]]:
+        """:meth:`EpisodeStats.update`, the episodes also kept for the bar."""
+        finished = self.episodes.update(batch)
+        self.recent.extend(finished)
+        return finished
+
+    def env_steps_per_s(self, frames: int) -> float:
+        """Frames collected per second since the loop started, ``frames`` collected in all."""
+        return (frames - self._start_frames) / max(time.perf_counter() - self._start, 1e-9)
+
+    def advance(self, batch_frames: int, eval_history: Sequence[Mapping[str, float]]) -> None:
+        self.bar.update(batch_frames)
+        self.bar.set_postfix(progress_postfix(self.recent, eval_history))
+
+    def close(self) -> None:
+        self.bar.close()

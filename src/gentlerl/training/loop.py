@@ -9,27 +9,26 @@ start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
 from __future__ import annotations
 
 import dataclasses
-import time
-from collections import defaultdict, deque
-from pathlib import Path
+from collections import defaultdict
 from typing import Any
 
 import numpy as np
-import torch
-import yaml
+from tensordict import TensorDictBase
 from torchrl import timeit
-from tqdm.auto import tqdm
 
-from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.learner import TrainingState
+from gentlerl.config.layout import RunLayout
 from gentlerl.training import guards
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
-    check_env_keys,
     default_env_factory,
-    make_collector,
+    make_agent,
     make_eval_env,
+    make_logger,
+    make_run_collector,
+    prepare_process,
+    write_config,
 )
 from gentlerl.training.checkpoint import (
     check_critic_supports,
@@ -42,14 +41,12 @@ from gentlerl.training.checkpoint import (
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import calibration_scalars, measure_calibration
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
-from gentlerl.training.logging import EPISODE_KEYS, EpisodeStats, RunLogger, progress_postfix
+from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger
 from gentlerl.training.run_lock import RunLock
-from gentlerl.training.seeding import rng_state, seed_everything, set_rng_state
+from gentlerl.training.seeding import rng_state, set_rng_state
 
-CHECKPOINT = "checkpoint.pt"
-#: The actor of the best evaluation so far (see :meth:`Trainer._keep_best`); ``load_policy`` reads it.
-BEST_POLICY = "best_policy.pt"
-DONE_MARKER = "DONE"
+#: The evaluation env is seeded with the run's seed plus this (apart from every collection env).
+EVAL_SEED_OFFSET = 10_000
 
 
 class Trainer:
@@ -57,119 +54,127 @@ class Trainer:
 
     def __init__(self, cfg: TrainConfig, env_factory: EnvFactory | None = None) -> None:
         validate(cfg)
-        self.cfg = cfg
-        self.run_dir = Path(cfg.run_dir)
-        # Before anything is written: a refused resume leaves no trace in run_dir.
-        self.ckpt = self.run_dir / CHECKPOINT
-        self.resume_state = guards.load_resume_state(cfg, self.ckpt)
-        torch.set_num_threads(cfg.num_threads)
-        seed_everything(cfg.seed)
-        if cfg.collector.kind == "ray":  # Ray installed, cluster reachable: before writing
-            from gentlerl.distributed.cluster import join_cluster
-
-            join_cluster(cfg.collector.ray_address)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.cfg, self.layout = cfg, RunLayout(cfg.run_dir)
+        # Before anything is written: a refused resume leaves no trace in the run directory.
+        self.resume_state = guards.load_resume_state(cfg, self.layout.checkpoint)
+        prepare_process(cfg)
+        self.layout.root.mkdir(parents=True, exist_ok=True)
         self.env_factory = env_factory or default_env_factory(cfg)
-        probe = self.env_factory()
-        self.builder = AgentBuilder(cfg, probe)
-        self.max_steps = self.builder.horizon
-        self.rewards = self.builder.make_intrinsic_rewards()
-        check_env_keys(probe, self.rewards)
-        probe.close()
-        self.learner = self.builder.make_learner()
-        col = cfg.collector
-        updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
-        self.writer, self.rb, self.beta_schedule = self.builder.make_replay(
-            updates, self.rewards.window_keys
-        )
+        agent = make_agent(cfg, self.env_factory)
+        self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
+        self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
         self.eval_history: list[dict[str, float]] = []
         self.best_eval: dict[str, float] | None = None
 
-    # -- the loop ------------------------------------------------------------------------
+    # -- the run -------------------------------------------------------------------------
     def run(self) -> dict[str, float]:
+        """Collect up to ``collector.total_frames``, evaluate the last actor, write ``DONE``;
+        a finished run is not run again (its final evaluation is returned)."""
         cfg = self.cfg
-        remove_stale_temp_files(self.run_dir)
-        if self.resume_state is not None:
-            state, self.resume_state = self.resume_state, None
-            done = guards.finished_summary(state, self.run_dir / DONE_MARKER, cfg)
-            if done is not None:
-                return done
-            self.load_state_dict(state)
-            guards.record_config_changes(self.run_dir, state, cfg.to_dict())
-        config = guards.plain(cfg.to_dict())
-        (self.run_dir / "config.yaml").write_text(yaml.safe_dump(config))
-        log = cfg.logging
-        logger = RunLogger(self.run_dir, config, log.wandb_mode, log.wandb_project, log.logger)
+        remove_stale_temp_files(self.layout.root)
+        finished = self._resume()
+        if finished is not None:
+            return finished
+        logger = make_logger(cfg, write_config(cfg, self.layout))
         logger.truncate_after(self.counters["frames"])
         eval_env = make_eval_env(
-            self.env_factory, cfg.seed + 10_000, log.eval_episodes, cfg.env.force
+            self.env_factory, cfg.seed + EVAL_SEED_OFFSET, cfg.logging.eval_episodes, cfg.env.force
         )
         if cfg.collector.total_frames > self.counters["frames"]:
             self._collect(logger, eval_env)
-        last = self.eval_history[-1] if self.eval_history else {"frames": -1}
-        if last["frames"] == self.counters["frames"]:  # the last batch's evaluation was the final
-            summary = {k: v for k, v in last.items() if k != "frames"}
-        else:
-            summary = self._evaluate(logger, eval_env)
+        summary = self._final_evaluation(logger, eval_env)
         self.save()
-        (self.run_dir / DONE_MARKER).write_text("done\n")
+        self.layout.done.write_text("done\n")
         logger.close()
         eval_env.close()
         return summary
 
+    def _resume(self) -> dict[str, float] | None:
+        """Load the checkpoint found at start (its safe config changes recorded); a finished
+        run's final evaluation instead."""
+        if self.resume_state is None:
+            return None
+        state, self.resume_state = self.resume_state, None
+        finished = guards.finished_summary(state, self.layout.done, self.cfg)
+        if finished is None:
+            self.load_state_dict(state)
+            guards.record_config_changes(self.layout.root, state, self.cfg.to_dict())
+        return finished
+
     def _collect(self, logger: RunLogger, eval_env: Any) -> None:
-        cfg, c, col = self.cfg, self.counters, self.cfg.collector
-        policy = self.builder.make_policy(self.learner)
-        random_left = max(col.init_random_frames - c["frames"], 0)
-        frames_left = col.total_frames - c["frames"]
-        seed = cfg.seed + c["frames"]
-        collector = make_collector(col, self.env_factory, policy, frames_left, random_left, seed)
+        policy, frames = self.builder.make_policy(self.learner), self.counters["frames"]
+        collector = make_run_collector(self.cfg, self.env_factory, policy, frames)
         try:
-            self._collect_with(collector, seed, logger, eval_env)
+            self._loop(collector, logger, eval_env)
         finally:  # also on a worker's error: no env processes or Ray actors left behind
             collector.shutdown()
 
-    def _collect_with(self, collector: Any, seed: int, logger: RunLogger, eval_env: Any) -> None:
-        cfg, c, col = self.cfg, self.counters, self.cfg.collector
-        collector.set_seed(seed)
-        if col.kind == "ray":
-            collector.update_policy_weights_()  # workers start from the learner's current actor
-        next_sync = c["updates"] + col.weight_sync_every
-        tracker, recent = EpisodeStats(self.rewards.reward_keys), deque(maxlen=20)
-        pending: dict[str, list[float]] = defaultdict(list)
-        bar = tqdm(
-            total=col.total_frames,
-            initial=c["frames"],
-            disable=not cfg.logging.progress,
-            unit="frame",
+    def _loop(self, collector: Any, logger: RunLogger, eval_env: Any) -> None:
+        """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
+        cfg, c = self.cfg, self.counters
+        next_sync = c["updates"] + cfg.collector.weight_sync_every
+        progress = Progress(
+            self.rewards.reward_keys, cfg.collector.total_frames, c["frames"], cfg.logging.progress
         )
-        start, start_frames = time.perf_counter(), c["frames"]
+        pending: dict[str, list[float]] = defaultdict(list)
         for batch in collector:
-            batch = self.rewards.transform(batch)
-            guards.check_rewards(batch, self.rewards.reward_keys, c["frames"], self.ckpt)
-            c["frames"] += batch.numel()
-            for ep in tracker.update(batch):
-                logger.log({f"episode/{k}": v for k, v in ep.items()}, c["frames"])
-                recent.append(ep)
-            batch = batch.exclude(*EPISODE_KEYS, *[("next", k) for k in EPISODE_KEYS])
-            self.rewards.extend(batch)
-            rewards = [("next", k) for k in self.rewards.reward_keys]
-            self.writer.extend(batch.select(*AGENT_KEYS, *rewards))
-            if c["frames"] > col.init_random_frames and len(self.rb) >= cfg.replay.batch_size:
-                c["update_credit"] += cfg.learner.utd_ratio * batch.numel()
-                while c["update_credit"] >= 1:
-                    c["update_credit"] -= 1
-                    for k, v in self.update().items():
-                        pending[k].append(v)
-                if col.kind == "multi" or (col.kind == "ray" and c["updates"] >= next_sync):
-                    collector.update_policy_weights_()
-                    next_sync = c["updates"] + col.weight_sync_every
-            fps = (c["frames"] - start_frames) / max(time.perf_counter() - start, 1e-9)
-            self._report(logger, eval_env, pending, fps, batch.numel())
-            bar.update(batch.numel())
-            bar.set_postfix(progress_postfix(recent, self.eval_history))
-        bar.close()
+            batch = self._rewarded(batch)
+            for episode in progress.finished_episodes(batch):
+                logger.log({f"episode/{k}": v for k, v in episode.items()}, c["frames"])
+            self._store(batch)
+            if self._learning():
+                self._earn_updates(batch.numel(), pending)
+                next_sync = self._sync_policy(collector, next_sync)
+            self._log_training(logger, pending)
+            fps = progress.env_steps_per_s(c["frames"])
+            logger.log({"train/env_steps_per_s": fps}, c["frames"])
+            if _crossed(c["frames"], batch.numel(), cfg.logging.eval_every_frames):
+                self._evaluate(logger, eval_env)
+            if _crossed(c["frames"], batch.numel(), cfg.logging.checkpoint_every_frames):
+                self.save()
+            progress.advance(batch.numel(), self.eval_history)
+        progress.close()
+
+    def _rewarded(self, batch: TensorDictBase) -> TensorDictBase:
+        """The batch with every reward component (checked finite), counted in ``frames``."""
+        batch = self.rewards.transform(batch)
+        frames = self.counters["frames"]
+        guards.check_rewards(batch, self.rewards.reward_keys, frames, self.layout.checkpoint)
+        self.counters["frames"] += batch.numel()
+        return batch
+
+    def _store(self, batch: TensorDictBase) -> None:
+        """The models' buffer (1-step transitions) and the learner's (through the n-step writer)."""
+        batch = batch.exclude(*EPISODE_KEYS, *[("next", k) for k in EPISODE_KEYS])
+        self.rewards.extend(batch)
+        rewards = [("next", k) for k in self.rewards.reward_keys]
+        self.writer.extend(batch.select(*AGENT_KEYS, *rewards))
+
+    def _learning(self) -> bool:
+        """Past ``init_random_frames``, with a batch's worth of transitions to sample."""
+        c, cfg = self.counters, self.cfg
+        return (
+            c["frames"] > cfg.collector.init_random_frames and len(self.rb) >= cfg.replay.batch_size
+        )
+
+    def _earn_updates(self, frames: int, pending: dict[str, list[float]]) -> None:
+        """``utd_ratio`` updates per collected frame (fractions carried to the next batch)."""
+        c = self.counters
+        c["update_credit"] += self.cfg.learner.utd_ratio * frames
+        while c["update_credit"] >= 1:
+            c["update_credit"] -= 1
+            for k, v in self.update().items():
+                pending[k].append(v)
+
+    def _sync_policy(self, collector: Any, next_sync: int) -> int:
+        """Send the actor to the workers (multi: each batch; ray: each ``weight_sync_every``
+        updates); returns the update count of the next Ray sync."""
+        col, updates = self.cfg.collector, self.counters["updates"]
+        if col.kind == "multi" or (col.kind == "ray" and updates >= next_sync):
+            collector.update_policy_weights_()
+            return updates + col.weight_sync_every
+        return next_sync
 
     def update(self) -> dict[str, float]:
         """One update: every model (then the rewards' schedule), then the D4PG learner."""
@@ -186,36 +191,31 @@ class Trainer:
         for key in self.rewards.reward_keys:
             metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
         where = f"frame {self.counters['frames']} (update {self.counters['updates']})"
-        guards.stop_if_not_finite(metrics, where, self.ckpt)
+        guards.stop_if_not_finite(metrics, where, self.layout.checkpoint)
         return metrics
 
-    def _report(
-        self,
-        logger: RunLogger,
-        eval_env: Any,
-        pending: dict[str, list[float]],
-        fps: float,
-        batch_frames: int,
-    ) -> None:
-        """Log averaged update metrics, env speed; evaluate and checkpoint when due."""
-        log, frames = self.cfg.logging, self.counters["frames"]
-        if pending and len(pending["loss_value"]) >= log.log_every_updates:
-            scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
-            scalars["train/intrinsic_on"] = float(self.rewards.intrinsic_on)
-            # Model + learner updates per second of update time (collection excluded).
-            scalars["train/updates_per_s"] = 1.0 / max(timeit.todict()["update"], 1e-9)
-            logger.log(scalars, frames)
-            pending.clear()
-            timeit.erase()
-        logger.log({"train/env_steps_per_s": fps}, frames)
-        if _crossed(frames, batch_frames, log.eval_every_frames):
-            self._evaluate(logger, eval_env)
-        if _crossed(frames, batch_frames, log.checkpoint_every_frames):
-            self.save()
+    def _log_training(self, logger: RunLogger, pending: dict[str, list[float]]) -> None:
+        """The update metrics averaged over every ``log_every_updates`` updates, and their speed."""
+        if not pending or len(pending["loss_value"]) < self.cfg.logging.log_every_updates:
+            return
+        scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
+        scalars["train/intrinsic_on"] = float(self.rewards.intrinsic_on)
+        # Model + learner updates per second of update time (collection excluded).
+        scalars["train/updates_per_s"] = 1.0 / max(timeit.todict()["update"], 1e-9)
+        logger.log(scalars, self.counters["frames"])
+        pending.clear()
+        timeit.erase()
+
+    def _final_evaluation(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+        """The last batch's evaluation where it was at the final frame, else a new one."""
+        last = self.eval_history[-1] if self.eval_history else {"frames": -1}
+        if last["frames"] == self.counters["frames"]:
+            return {k: v for k, v in last.items() if k != "frames"}
+        return self._evaluate(logger, eval_env)
 
     def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
         episodes = self.cfg.logging.eval_episodes
-        rollouts = rollout_episodes(eval_env, self.learner.actor, episodes, self.max_steps)
+        rollouts = rollout_episodes(eval_env, self.learner.actor, episodes, self.builder.horizon)
         summary, per_episode = summarize_episodes(rollouts)
         frames = self.counters["frames"]
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
@@ -229,7 +229,7 @@ class Trainer:
         return summary
 
     def _keep_best(self, result: dict[str, float]) -> None:
-        """Save the actor to :data:`BEST_POLICY` when this evaluation beats every earlier one.
+        """Save the actor to ``best_policy.pt`` when this evaluation beats every earlier one.
 
         DDPG policies can lose a solved task later in training (docs/REPRODUCTION.md), so the
         best one (:func:`~gentlerl.training.evaluation.rank`) is kept apart from the last one.
@@ -238,7 +238,7 @@ class Trainer:
             return
         self.best_eval = dict(result)
         state = {**self._policy_state(), "eval": self.best_eval}
-        save_checkpoint(self.run_dir / BEST_POLICY, state)
+        save_checkpoint(self.layout.best_policy, state)
 
     # -- state ---------------------------------------------------------------------------
     def _policy_state(self) -> dict[str, Any]:
@@ -270,7 +270,7 @@ class Trainer:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        check_critic_supports(state, self.learner.loss.value_network, self.ckpt)
+        check_critic_supports(state, self.learner.loss.value_network, self.layout.checkpoint)
         self.learner.restore(TrainingState(**state["learner"]))
         self.rewards.load_state_dict(state["intrinsic"])
         if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
@@ -286,7 +286,7 @@ class Trainer:
         set_rng_state(state["rng"])
 
     def save(self) -> None:
-        save_checkpoint(self.run_dir / CHECKPOINT, self.state_dict())
+        save_checkpoint(self.layout.checkpoint, self.state_dict())
 
 
 def _crossed(frames: int, batch_frames: int, every: int) -> bool:
