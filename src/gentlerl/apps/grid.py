@@ -142,7 +142,7 @@ def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) ->
     if dry_run:
         return 0
     run.run_dir.mkdir(parents=True, exist_ok=True)
-    log_path = run.run_dir / "stdout.log"
+    log_path = RunLayout(run.run_dir).stdout
     with log_path.open("a") as log:
         code = _call(command, log)
     if code != 0:

@@ -12,6 +12,7 @@ claims, evaluate, calibration) read through it. A run directory holds::
     logs/scalars/*.csv        one CSV per scalar (TorchRL CSVLogger, experiment "logs")
     eval_episodes.csv         one row per evaluation episode
     final_eval_episodes.csv   the final actor's episodes (``gentlerl evaluate --episodes-csv``)
+    stdout.log                the trainer's output when a sweep runs it
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ LOGS = "logs"
 SCALARS = "scalars"
 EVAL_EPISODES = "eval_episodes.csv"
 FINAL_EVAL_EPISODES = "final_eval_episodes.csv"
+STDOUT = "stdout.log"
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,10 @@ class RunLayout:
     @property
     def final_eval_episodes(self) -> Path:
         return self.root / FINAL_EVAL_EPISODES
+
+    @property
+    def stdout(self) -> Path:
+        return self.root / STDOUT
 
     def is_run(self) -> bool:
         """Whether ``root`` holds a run (its ``config.yaml``)."""
