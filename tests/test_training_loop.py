@@ -13,6 +13,7 @@ from torchrl.collectors import Collector
 from torchrl.envs import Compose, TransformedEnv
 
 from gentlerl import keys
+from gentlerl.config.layout import RunLayout
 from gentlerl.training import Trainer, load_policy, make_config, train
 from gentlerl.training.config import iter_fields
 from gentlerl.training.evaluation import evaluate
@@ -68,7 +69,7 @@ def toy_env():
 
 
 def read_scalar(run_dir: Path, name: str) -> list[tuple[int, float]]:
-    path = run_dir / "logs" / "scalars" / f"{name}.csv"
+    path = RunLayout(run_dir).scalars / f"{name}.csv"
     return [(int(s), float(v)) for s, v in csv.reader(path.open())]
 
 
@@ -94,7 +95,7 @@ TIMING = ("train/env_steps_per_s", "train/updates_per_s")
 
 
 def _logged_scalars(run_dir: Path) -> dict[str, list[tuple[int, float]]]:
-    root = run_dir / "logs" / "scalars"
+    root = RunLayout(run_dir).scalars
     names = [str(p.relative_to(root).with_suffix("")) for p in root.glob("**/*.csv")]
     return {name: read_scalar(run_dir, name) for name in names if name not in TIMING}
 
@@ -138,8 +139,9 @@ def test_update_to_data_ratio(tmp_path, utd_ratio):
 
 def test_run_directory_follows_the_logging_contract(finished_run):
     run_dir, trainer, summary = finished_run
-    assert (run_dir / "DONE").exists() and (run_dir / "checkpoint.pt").exists()
-    config = yaml.safe_load((run_dir / "config.yaml").read_text())
+    layout = RunLayout(run_dir)
+    assert layout.is_run() and layout.done.exists() and layout.checkpoint.exists()
+    config = yaml.safe_load(layout.config.read_text())
     for key in ("task", "variant", "seed", "scale", "collector", "gentleness"):
         assert key in config
     assert config["gentleness"]["lam_prime"] == [2.0, 2.0]
@@ -173,7 +175,7 @@ def test_run_directory_follows_the_logging_contract(finished_run):
     assert [s for s, _ in read_scalar(run_dir, "eval/success_rate")] == [500, 1000]
     lengths = [v for _, v in read_scalar(run_dir, "episode/length")]
     assert all(1 <= n <= 50 for n in lengths)
-    with (run_dir / "eval_episodes.csv").open() as f:
+    with layout.eval_episodes.open() as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == EVAL_COLUMNS and len(rows) == 1 + 2 * 2
     assert summary == {k: v for k, v in trainer.eval_history[-1].items() if k != "frames"}
@@ -186,15 +188,16 @@ def test_best_policy_is_the_best_evaluation_of_the_run(finished_run):
         return (r["success_rate"], -r["broken_rate"], -r["max_impact_mean"])
 
     best = max(trainer.eval_history, key=rank)  # ties: the earliest evaluation stays
-    state = torch.load(run_dir / "best_policy.pt", weights_only=False)
+    path = RunLayout(run_dir).best_policy
+    state = torch.load(path, weights_only=False)
     assert state["eval"] == best == trainer.best_eval
-    cfg, actor = load_policy(run_dir / "best_policy.pt")
+    cfg, actor = load_policy(path)
     assert cfg.variant == "r+rf+rsp" and set(actor.state_dict()) == set(state["actor"])
 
 
 def test_best_policy_ranks_success_then_breaks_then_impact(tmp_path):
     trainer = Trainer(tiny_config(tmp_path), toy_env)
-    path = tmp_path / "best_policy.pt"
+    path = RunLayout(tmp_path).best_policy
 
     def offer(frames, success, broken, impact):
         result = dict(frames=frames, success_rate=success, broken_rate=broken)
