@@ -269,6 +269,17 @@ def make_eval_env(
     return env
 
 
+#: A run's evaluation env is seeded with the run's seed plus this (apart from every worker's).
+EVAL_SEED_OFFSET = 10_000
+
+
+def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:
+    """The run's :func:`make_eval_env`: ``logging.eval_episodes`` hands seeded with
+    ``cfg.seed + EVAL_SEED_OFFSET``."""
+    seed = cfg.seed + EVAL_SEED_OFFSET
+    return make_eval_env(env_factory, seed, cfg.logging.eval_episodes, cfg.env.force)
+
+
 def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
     """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
     config = guards.plain(cfg.to_dict())

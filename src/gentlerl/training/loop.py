@@ -1,9 +1,12 @@
-"""The one training loop shared by every recipe: a thin runner over the agent's builder.
+"""The one training loop shared by every recipe, in the shape of a TorchRL sota script.
 
+Set-up is a row of builders (:mod:`gentlerl.training.builders`): the process, the agent from a
+probed env, the config file, the logger, the evaluation env, the collector. Then each batch goes
 collect -> reward transforms -> buffers -> (model updates -> schedule) -> D4PG update -> log ->
 evaluate -> checkpoint. The models learn from 1-step transitions (:class:`IntrinsicRewards`), the
 learner from n-step ones (the prioritised buffer, written through an ``NStepWriter``). Updates
-start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
+start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates. Files go where
+:class:`~gentlerl.config.layout.RunLayout` names.
 """
 
 from __future__ import annotations
@@ -24,9 +27,9 @@ from gentlerl.training.builders import (
     EnvFactory,
     default_env_factory,
     make_agent,
-    make_eval_env,
     make_logger,
     make_run_collector,
+    make_run_eval_env,
     prepare_process,
     write_config,
 )
@@ -44,9 +47,6 @@ from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episo
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state, set_rng_state
-
-#: The evaluation env is seeded with the run's seed plus this (apart from every collection env).
-EVAL_SEED_OFFSET = 10_000
 
 
 class Trainer:
@@ -78,9 +78,7 @@ class Trainer:
             return finished
         logger = make_logger(cfg, write_config(cfg, self.layout))
         logger.truncate_after(self.counters["frames"])
-        eval_env = make_eval_env(
-            self.env_factory, cfg.seed + EVAL_SEED_OFFSET, cfg.logging.eval_episodes, cfg.env.force
-        )
+        eval_env = make_run_eval_env(cfg, self.env_factory)
         if cfg.collector.total_frames > self.counters["frames"]:
             self._collect(logger, eval_env)
         summary = self._final_evaluation(logger, eval_env)
