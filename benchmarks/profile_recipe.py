@@ -30,8 +30,12 @@ from gentlerl.training import make_config, train
 
 #: Functions whose callees are the loop's phases (callees of every one found, minus each other).
 LOOP = tuple(
-    rf"training/loop\.py:\d+\({name}\)" for name in ("run", "_collect", "update", "_report")
-)
+    rf"training/loop\.py:\d+\({name}\)"
+    for name in (
+        "run", "_collect", "_loop", "_rewarded", "_store", "_earn_updates", "update",
+        "_log_training",
+    )
+)  # fmt: skip
 #: Totals found anywhere: label -> (pattern, "tottime" or "cumtime").
 TOTALS = {
     "MuJoCo physics (mj_step*, anywhere)": (r"<built-in method mujoco\._functions\.mj_step", 2),
