@@ -8,9 +8,9 @@ import time
 import pytest
 
 from gentlerl.apps.grid import expand
+from gentlerl.apps.grid_ray import run_grid_on_ray
 from gentlerl.apps.sweeps import main
 from gentlerl.distributed import RAY_EXTRA, ClusterError, connect
-from gentlerl.distributed.sweeps import run_grid_on_ray
 
 from .test_sweeps import TINY
 

@@ -8,7 +8,7 @@ builds networks itself, so every runner trains the same agent.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import torch
 from tensordict.utils import NestedKey
@@ -25,12 +25,31 @@ from gentlerl.agent.variants import (
     intrinsic_keys,
     reward_keys,
 )
+from gentlerl.config import (
+    CollectorConfig,
+    EnvConfig,
+    GentlenessConfig,
+    LearnerConfig,
+    NetworkConfig,
+    ReplayConfig,
+)
 from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
 
-if TYPE_CHECKING:
-    from gentlerl.training.config import TrainConfig
+
+class AgentConfig(Protocol):
+    """What the builder reads of a run's config (:class:`gentlerl.training.TrainConfig` is one):
+    the variant, the seed and the groups of :mod:`gentlerl.config`."""
+
+    variant: str
+    seed: int
+    env: EnvConfig
+    collector: CollectorConfig
+    replay: ReplayConfig
+    learner: LearnerConfig
+    network: NetworkConfig
+    gentleness: GentlenessConfig
 
 
 def episode_steps(env: EnvBase, default: int = 1000) -> int:
@@ -66,7 +85,7 @@ class AgentBuilder:
         reward_keys: the variant's reward components, in critic-head order.
     """
 
-    def __init__(self, cfg: TrainConfig, env: EnvBase) -> None:
+    def __init__(self, cfg: AgentConfig, env: EnvBase) -> None:
         self.cfg = cfg
         spec = env.observation_spec
         batch_dims = len(env.batch_size)

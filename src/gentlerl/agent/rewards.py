@@ -24,7 +24,7 @@ from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
 
 if TYPE_CHECKING:
-    from gentlerl.training.config import GentlenessConfig
+    from gentlerl.config import GentlenessConfig
 
 
 class IntrinsicRewards:

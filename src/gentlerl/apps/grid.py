@@ -3,7 +3,7 @@
 :func:`expand` turns a sweep file's grid into :class:`GridRun` points, each a ``gentlerl-train``
 process with a deterministic ``run_dir``; :func:`pending` is the points without their run's
 ``DONE`` marker; :func:`run_point` runs one with ``resume=auto``; :func:`run_grid` is the local
-backend (a pool of ``workers`` points at a time). :mod:`gentlerl.distributed.sweeps` runs the
+backend (a pool of ``workers`` points at a time). :mod:`gentlerl.apps.grid_ray` runs the
 same points as Ray tasks.
 """
 

@@ -11,7 +11,7 @@ parameter does not affect them). Keys and values are checked before anything run
 (:mod:`gentlerl.apps.sweep_files`), and each point's config is validated; an interrupted sweep
 kills its trainers' process groups. The same files work with ``wandb sweep`` / ``wandb agent``.
 The points run on a backend (:data:`BACKENDS`): ``local`` runs ``--workers`` at a time here,
-``ray`` runs each as a Ray task, on a local Ray or a cluster (:mod:`gentlerl.distributed.sweeps`,
+``ray`` runs each as a Ray task, on a local Ray or a cluster (:mod:`gentlerl.apps.grid_ray`,
 docs/DISTRIBUTED.md).
 """
 
@@ -40,8 +40,8 @@ def _local(
 def _ray(runs: Sequence[GridRun], extra: Sequence[str], args: argparse.Namespace) -> dict[str, int]:
     if args.dry_run:
         return _local(runs, extra, args)
+    from gentlerl.apps.grid_ray import run_grid_on_ray
     from gentlerl.distributed.cluster import ClusterError
-    from gentlerl.distributed.sweeps import run_grid_on_ray
 
     cpus = max(1, round(args.workers * args.cpus_per_run))
     try:

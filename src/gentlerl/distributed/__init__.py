@@ -1,4 +1,5 @@
-"""Running gentlerl on Ray: joining or starting a cluster, sweeps as Ray tasks.
+"""Running gentlerl on Ray: joining or starting a cluster, remote collectors (sweeps as Ray tasks:
+:mod:`gentlerl.apps.grid_ray`).
 
 Ray is an optional extra (``pip install -e '.[ray]'``); nothing here imports it at module level.
 """

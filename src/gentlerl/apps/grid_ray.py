@@ -1,4 +1,5 @@
-"""A sweep grid on Ray: each grid point is one Ray task running the recipe on some node.
+"""The Ray backend of `gentlerl sweep`: each grid point is one Ray task running the recipe on some
+node.
 
 The task calls :func:`gentlerl.apps.grid.run_point` on the node that runs it, so resuming is the
 local runner's: ``DONE`` runs are skipped before submitting, a run with a checkpoint continues
