@@ -50,13 +50,6 @@ def run_train(argv: Sequence[str]) -> None:
         sys.argv = saved
 
 
-def command_parser(prog: str, description: str) -> argparse.ArgumentParser:
-    """A subcommand's parser whose ``--help`` shows each option's default."""
-    return argparse.ArgumentParser(
-        prog=prog, description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter
-    )
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gentlerl",

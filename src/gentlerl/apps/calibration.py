@@ -183,7 +183,7 @@ def format_table(report: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") -> dict[str, Any]:
-    from gentlerl.cli import command_parser
+    from gentlerl.apps.parsing import command_parser
 
     parser = command_parser(prog, __doc__.splitlines()[0])
     parser.add_argument("run", help="a run directory or its checkpoint.pt (not an actor-only file)")

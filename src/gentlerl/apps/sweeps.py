@@ -23,8 +23,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from gentlerl.apps.grid import GridRun, expand, restrict, run_grid
+from gentlerl.apps.parsing import command_parser
 from gentlerl.apps.sweep_files import check_set, load_sweep, point_problem
-from gentlerl.cli import command_parser
 
 #: Runs a grid's points with the extra overrides and the command line's options; the counts of
 #: ``done`` / ``skipped`` / ``failed`` / ``planned`` points.

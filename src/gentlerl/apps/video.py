@@ -27,7 +27,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
 from gentlerl.apps.outputs import check_output_file
-from gentlerl.cli import command_parser
+from gentlerl.apps.parsing import command_parser
 from gentlerl.envs.assets import FINGERTIPS
 from gentlerl.envs.rendering import INSTALL_HINT
 from gentlerl.functional import impact
