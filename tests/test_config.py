@@ -8,15 +8,16 @@ from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.variants import discounted_horizon
 from gentlerl.apps.train import config_from_hydra, describe, register_configs
+from gentlerl.config import SCALES, GentlenessConfig
 from gentlerl.envs import TASKS
 from gentlerl.envs.batched import available_cores
-from gentlerl.training import SCALES, make_config
+from gentlerl.training import make_config
 from gentlerl.training.builders import (
     check_env_keys,
     collection_env_factory,
     default_env_factory,
 )
-from gentlerl.training.config import GentlenessConfig, iter_fields
+from gentlerl.training.config import iter_fields
 from gentlerl.transforms import DynamicsSurprise
 from tests.toy_env import ToyHandEnv
 

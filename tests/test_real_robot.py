@@ -8,8 +8,9 @@ import pytest
 from hydra import compose, initialize
 
 from gentlerl.apps.train import config_from_hydra, register_configs
+from gentlerl.config.fields import get
 from gentlerl.training import make_config
-from gentlerl.training.config import get, iter_fields
+from gentlerl.training.config import iter_fields
 from gentlerl.transforms import TouchCalibration
 
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"

@@ -14,8 +14,8 @@ from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
 from gentlerl.agent import VARIANTS, IntrinsicRewards
+from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, mixture_moments
-from gentlerl.training.config import GentlenessConfig
 from gentlerl.transforms import DynamicsSurprise, ImpactPenalty, PenaltySurprise
 from tests.toy_env import ToyHandEnv
 

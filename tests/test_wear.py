@@ -11,7 +11,7 @@ from torchrl.envs.utils import check_env_specs
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.variants import head_supports, reward_keys
-from gentlerl.training.config import GentlenessConfig
+from gentlerl.config import GentlenessConfig
 from gentlerl.transforms import ForcePenalty, TorquePenalty
 from tests.toy_env import ToyHandEnv
 

@@ -6,8 +6,8 @@ from tensordict import TensorDict
 
 from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
+from gentlerl.config import GentlenessConfig
 from gentlerl.data import WINDOW, NStepWriter, make_replay_buffer, nstep_return, nstep_windows
-from gentlerl.training.config import GentlenessConfig
 
 
 def _trajectory(T=12, terminal_at=6, obs_dim=1, act_dim=1):

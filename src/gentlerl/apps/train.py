@@ -20,7 +20,9 @@ import hydra
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
-from gentlerl.training.config import SCALES, TrainConfig, get, iter_fields, make_config
+from gentlerl.config import SCALES
+from gentlerl.config.fields import get
+from gentlerl.training.config import TrainConfig, iter_fields, make_config
 
 #: Where a run goes unless ``run_dir=...`` is given (an external env's runs under its task name).
 RUN_DIR = "runs/${gentlerl_run_name:${task},${env.name}}/${variant}/seed${seed}"

@@ -1,11 +1,10 @@
 """Training: config, the shared loop (a runner of :mod:`gentlerl.agent`), checkpoints, logging."""
 
 from gentlerl.training.checkpoint import load_checkpoint, load_policy, save_checkpoint
-from gentlerl.training.config import SCALES, TrainConfig, make_config, validate
+from gentlerl.training.config import TrainConfig, make_config, validate
 from gentlerl.training.loop import Trainer, train
 
 __all__ = [
-    "SCALES",
     "TrainConfig",
     "Trainer",
     "load_checkpoint",

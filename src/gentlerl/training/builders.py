@@ -21,11 +21,12 @@ from gentlerl import keys
 from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.learner import Learner
+from gentlerl.config import CollectorConfig
 from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
 from gentlerl.training import guards
-from gentlerl.training.config import CollectorConfig, TrainConfig
+from gentlerl.training.config import TrainConfig
 from gentlerl.training.logging import RunLogger, episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.training.seeding import seed_everything

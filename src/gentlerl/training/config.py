@@ -13,11 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gentlerl.config import fields
-from gentlerl.config.fields import get, setting
+from gentlerl.config.fields import setting
 from gentlerl.config.groups import (
-    COLLECTORS,
     GROUPS,
-    WANDB_MODES,
     CollectorConfig,
     EnvConfig,
     GentlenessConfig,
@@ -31,19 +29,7 @@ from gentlerl.config.rules import GROUP_RULES
 from gentlerl.distributed.collector import ray_problems
 
 __all__ = [
-    "COLLECTORS",
-    "GROUPS",
-    "SCALES",
-    "WANDB_MODES",
-    "CollectorConfig",
-    "EnvConfig",
-    "GentlenessConfig",
-    "LearnerConfig",
-    "LoggingConfig",
-    "NetworkConfig",
-    "ReplayConfig",
     "TrainConfig",
-    "get",
     "group_flat_config",
     "iter_fields",
     "make_config",
