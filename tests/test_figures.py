@@ -14,8 +14,14 @@ from gentlerl.analysis.curves import (
     seeds_label,
 )
 from gentlerl.analysis.figures import build_parser, main, resolve_run_paths
-from gentlerl.analysis.runs import find_runs, group_runs
-from tests.test_plot import _fake_run
+from gentlerl.analysis.runs import (
+    final_impacts,
+    find_runs,
+    group_runs,
+    judged_by_success,
+    successful_final_impacts,
+)
+from tests.test_plot import EPISODES_HEADER, _fake_run
 
 
 def _series(frames, values):
@@ -143,3 +149,28 @@ def test_plot_help_gives_every_option_a_default_and_a_help_text():
     assert "(default: figures)" in text and "(default: runs/sweeps)" in text
     with pytest.raises(SystemExit):
         parser.parse_args([])  # at least one run folder
+
+
+def _external_run(root, variant, seed, returns, impacts):
+    """A run on an env without a success outcome (success logged as NaN), as finger-spin's."""
+    run = _fake_run(root, variant, seed, 2.0, (np.nan,) * 3, [1.0], env={"name": "ext:spin"})
+    values = "".join(f"{f},{v}\n" for f, v in zip((1000, 2000, 3000), returns, strict=True))
+    (run / "logs" / "scalars" / "eval" / "return.csv").write_text(values)
+    rows = "".join(f"3000,{i},nan,nan,{m},{returns[-1]}\n" for i, m in enumerate(impacts))
+    (run / "final_eval_episodes.csv").write_text(EPISODES_HEADER + rows)
+    return run
+
+
+def test_an_env_without_success_is_drawn_by_its_return_and_every_final_rollout(tmp_path):
+    _external_run(tmp_path, "r", 0, (0.0, 50.0, 140.0), [600.0, 700.0])
+    _external_run(tmp_path, "r+rf", 0, (0.0, 0.0, 0.0), [0.0, 0.0])
+    runs = find_runs([tmp_path])
+    fig = learning_curves_figure(runs)
+    assert len(fig.axes) == 1  # no empty success-rate row: the return only
+    assert fig.axes[0].get_ylabel() == "eval return"
+    # the paper's contrast, named without the paper's claim (about the hand tasks)
+    assert fig.axes[0].get_title() == "ext:spin: the penalty alone"
+    main([str(tmp_path), "-o", str(tmp_path / "figs")])
+    assert judged_by_success(runs) is False
+    assert sorted(final_impacts([r for r in runs if r.variant == "r"])) == [600.0, 700.0]
+    assert len(successful_final_impacts(runs)) == 0  # the selection the hand's Fig. 5 uses

@@ -9,6 +9,7 @@ sideways by a small fraction of the frame range so that their bars do not hide e
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Sequence
 
@@ -109,11 +110,12 @@ def distinct_metrics(runs: Sequence[Run], metrics: Sequence[tuple[str, str]]) ->
     """``metrics`` without those that repeat an earlier one's values in every run.
 
     On the touch task the evaluation return is the success rate (reward 1 on success, then the
-    episode ends), so a second panel would repeat the first.
+    episode ends), so a second panel would repeat the first. A metric no run has a number for
+    (success on an env without a success outcome, logged as NaN) is left out too.
     """
     kept: list[tuple[str, str]] = []
     for name, label in metrics:
-        logged = [r for r in runs if name in r.scalars]
+        logged = [r for r in runs if name in r.scalars and np.isfinite(r.scalars[name][1]).any()]
         repeats = any(
             all(_same_series(r.scalars[name], r.scalars.get(other)) for r in logged)
             for other, _ in kept
@@ -156,6 +158,8 @@ def learning_curves_figure(runs: Sequence[Run]) -> plt.Figure:
     metrics = metrics or [(EVAL_SUCCESS, "success rate")]
     groups = group_runs(runs)
     panels = learning_curve_panels(groups)
+    if EVAL_SUCCESS not in dict(metrics):  # not the paper's tasks: its contrasts, not its claims
+        panels = [(re.sub(r": claim \d+:", ":", title), keys) for title, keys in panels]
     shape = (len(metrics), len(panels))
     fig, axes = plt.subplots(*shape, figsize=(4.8 * shape[1], 3.3 * shape[0] + 1), squeeze=False)
     for col, (title, keys) in enumerate(panels):

@@ -37,10 +37,12 @@ from gentlerl.analysis.runs import (  # noqa: E402
     Run,
     Series,
     after_intrinsic_start,
+    final_impacts,
     final_policy_episodes,
     final_sources,
     find_runs,
     group_runs,
+    judged_by_success,
     seed_band,
     successful_final_impacts,
 )
@@ -52,7 +54,7 @@ def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
     """Panel title (task and variant) -> label (lambda'_2 for rsp variants) -> runs."""
     panels: dict[str, dict[str, list[Run]]] = defaultdict(lambda: defaultdict(list))
     for run in runs:
-        panels[f"{run.config.get('task')}: {run.variant}"][run.label].append(run)
+        panels[f"{run.task}: {run.variant}"][run.label].append(run)
     return dict(sorted(panels.items()))
 
 
@@ -102,17 +104,21 @@ def plot_final_impacts(runs: Sequence[Run], out: Path) -> Path:
     (:func:`gentlerl.analysis.runs.successful_final_impacts`); the legend names the episodes'
     source."""
 
+    by_success = judged_by_success(runs)  # else an env without success: every rollout
+    which = "successful " if by_success else ""
+
     def note(group: list[Run], values: np.ndarray) -> str:
         episodes = sum(len(final_policy_episodes(r)[0]) for r in group)
         if not episodes:
             return "no final-policy episodes"
-        return f"{len(values)} successful of {episodes} ({final_sources(group)})"
+        return f"{len(values)} {which}of {episodes} ({final_sources(group)})"
 
     title = (
-        "Max impact per successful rollout of the final policy (episodes: evaluate = "
+        f"Max impact per {which}rollout of the final policy (episodes: evaluate = "
         f"{FINAL_EVAL_EPISODES}, in-loop = the run's last evaluation)"
     )
-    fig = _histograms(runs, successful_final_impacts, note, title)
+    select = successful_final_impacts if by_success else final_impacts
+    fig = _histograms(runs, select, note, title)
     return _save(fig, out / "final_impacts.png")
 
 

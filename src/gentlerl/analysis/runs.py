@@ -204,6 +204,18 @@ def successful_final_impacts(runs: Sequence[Run]) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
+def final_impacts(runs: Sequence[Run]) -> np.ndarray:
+    """Max impact (N) of every evaluation rollout of each run's final policy, over ``runs``."""
+    parts = [rows["max_impact"] for rows, _ in map(final_policy_episodes, runs)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def judged_by_success(runs: Sequence[Run]) -> bool:
+    """Whether any final-policy episode of ``runs`` has a success outcome (an env without one,
+    such as dm_control's finger, logs NaN and is judged by its return)."""
+    return any(np.isfinite(rows["success"]).any() for rows, _ in map(final_policy_episodes, runs))
+
+
 def final_sources(runs: Sequence[Run]) -> str:
     """Where the final-policy episodes of ``runs`` come from: one source, or ``"mixed"``."""
     sources = {final_policy_episodes(run)[1] for run in runs}
