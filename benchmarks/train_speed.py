@@ -7,7 +7,8 @@ background load; the best round counts. Frames/s is over the whole run (collecti
 evaluation, logging, checkpoints).
 
 Run: ``python benchmarks/train_speed.py "collector.num_envs=1" "" "collector.overlap=true"``
-("" = the defaults).
+("" = the defaults); ``--eval-every-frames`` / ``--checkpoint-every-frames`` past ``--frames``
+time training alone (``"collector.overlap=process"``: collection in a child process).
 """
 
 from __future__ import annotations
@@ -23,11 +24,11 @@ import yaml
 from gentlerl.training import make_config, train
 
 
-def _overrides(setting: str, frames: int, random_frames: int) -> dict:
-    """``group.field=value`` items on top of the run length and quiet logging."""
+def _overrides(setting: str, frames: int, random_frames: int, logging: dict) -> dict:
+    """``group.field=value`` items on top of the run length and quiet ``logging``."""
     overrides: dict = {
         "collector": {"total_frames": frames, "init_random_frames": random_frames},
-        "logging": {"progress": False, "wandb_mode": "disabled"},
+        "logging": {"progress": False, "wandb_mode": "disabled", **logging},
     }
     for name, value in (item.split("=", 1) for item in setting.split()):
         group, _, key = name.rpartition(".")
@@ -35,10 +36,11 @@ def _overrides(setting: str, frames: int, random_frames: int) -> dict:
     return overrides
 
 
-def run(setting: str, frames: int, random_frames: int, seed: int) -> float:
-    """Seconds to train ``frames`` frames with ``setting``."""
+def run(setting: str, frames: int, random_frames: int, seed: int, logging: dict) -> float:
+    """Seconds to train ``frames`` frames with ``setting`` (``logging`` overrides on top)."""
     with tempfile.TemporaryDirectory() as run_dir:
-        cfg = make_config(run_dir=run_dir, seed=seed, **_overrides(setting, frames, random_frames))
+        overrides = _overrides(setting, frames, random_frames, logging)
+        cfg = make_config(run_dir=run_dir, seed=seed, **overrides)
         start = time.perf_counter()
         train(cfg)
         return time.perf_counter() - start
@@ -51,16 +53,26 @@ def main() -> None:
     parser.add_argument("--random-frames", type=int, default=2_000)
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval-every-frames", type=int, help="default: the recipe's")
+    parser.add_argument("--checkpoint-every-frames", type=int, help="default: the recipe's")
     args = parser.parse_args()
+    logging = {
+        name: value
+        for name, value in (
+            ("eval_every_frames", args.eval_every_frames),
+            ("checkpoint_every_frames", args.checkpoint_every_frames),
+        )
+        if value is not None
+    }
     torch.set_num_threads(1)
     best = dict.fromkeys(args.settings, float("inf"))
     loads = []
-    for _ in range(args.rounds):
+    for round_ in range(args.rounds):
         for setting in args.settings:
-            best[setting] = min(
-                best[setting], run(setting, args.frames, args.random_frames, args.seed)
-            )
+            seconds = run(setting, args.frames, args.random_frames, args.seed, logging)
+            best[setting] = min(best[setting], seconds)
             loads.append(os.getloadavg()[0])
+            print(f"round {round_}: {setting or 'defaults'} {seconds:.1f} s, load {loads[-1]:.1f}")
     base = best[args.settings[0]]
     print(
         f"{args.frames:,} frames ({args.random_frames:,} random), best of {args.rounds} rounds, "

@@ -13,6 +13,9 @@ from typing import Any
 from gentlerl.config.fields import setting
 
 COLLECTORS = ("single", "multi", "ray")
+#: collector.overlap: none, the next batch on a thread, or in a child process (a rule checks it:
+#: the choices a field declares are names).
+OVERLAPS = (False, True, "process")
 WANDB_MODES = ("offline", "online", "disabled")
 #: Where scalars go besides the CSV files that gentlerl plot reads (TorchRL ``get_logger`` types).
 LOGGERS = ("csv", "wandb", "tensorboard")
@@ -92,8 +95,11 @@ class CollectorConfig:
         bounds=">= 1",
         resumable=True,
     )
-    overlap: bool = setting(
-        False, "collect the next batch on a thread while the learner trains", resumable=True
+    overlap: bool | str = setting(
+        False,
+        "collect the next batch while the learner trains (one batch of policy lag): true on a "
+        "thread, process in a child process (on another core)",
+        resumable=True,
     )
     total_frames: int = setting(
         100_000, "env steps of the whole run", bounds=">= 1", resumable=True

@@ -6,15 +6,26 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from gentlerl.config.groups import CollectorConfig, GentlenessConfig, NetworkConfig, ReplayConfig
+from gentlerl.config.groups import (
+    OVERLAPS,
+    CollectorConfig,
+    GentlenessConfig,
+    NetworkConfig,
+    ReplayConfig,
+)
 
 
 def collector_problems(col: CollectorConfig) -> list[str]:
-    """The overlap thread needs the single collector; a batch splits evenly over ``num_envs``
-    hands, which only the single collector batches."""
+    """Overlap is false, true (a thread) or process, and needs the single collector; a batch
+    splits evenly over ``num_envs`` hands, which only the single collector batches."""
     problems = []
-    if col.overlap and col.kind != "single":
-        problems.append(f"collector.overlap=true needs collector.kind='single', got {col.kind!r}")
+    if col.overlap not in OVERLAPS:
+        problems.append(f"collector.overlap={col.overlap!r} must be true, false or process")
+    elif col.overlap and col.kind != "single":
+        problems.append(
+            f"collector.overlap={str(col.overlap).lower()} needs collector.kind='single', "
+            f"got {col.kind!r}"
+        )
     if col.num_envs is not None and col.num_envs >= 1 and col.frames_per_batch % col.num_envs:
         problems.append(
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "

@@ -29,6 +29,7 @@ from gentlerl.training import guards
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.logging import RunLogger, episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
+from gentlerl.training.process_collector import ProcessCollector
 from gentlerl.training.seeding import seed_everything
 from gentlerl.transforms import ImpactPenalty
 
@@ -195,11 +196,12 @@ def make_collector(
     frames_left: int,
     random_left: int,
     seed: int,
-) -> Collector | MultiSyncCollector | PrefetchCollector:
+) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
     """TorchRL ``Collector`` (one process), ``MultiSyncCollector`` (``num_workers`` processes) or
     ``RayCollector`` (``num_workers`` Ray actors, :mod:`gentlerl.distributed.collector`); with
-    ``cfg.overlap`` the single collector runs one batch ahead on a thread
-    (:class:`~gentlerl.training.prefetch.PrefetchCollector`).
+    ``cfg.overlap`` the single collector runs one batch ahead, on a thread (``true``:
+    :class:`~gentlerl.training.prefetch.PrefetchCollector`) or in a child process
+    (``"process"``: :class:`~gentlerl.training.process_collector.ProcessCollector`).
 
     Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset, so the
     first episode (its block position) is reproducible too; ``collector.set_seed`` comes too late
@@ -219,8 +221,9 @@ def make_collector(
     )
     env_factory = collection_env_factory(cfg, env_factory)
     if cfg.kind == "single" and cfg.overlap:
-        seeded = partial(_seeded_env, env_factory, seed)
-        return PrefetchCollector(lambda p: Collector(seeded, p, **common), policy, seed)
+        build = partial(Collector, partial(_seeded_env, env_factory, seed), **common)
+        ahead = ProcessCollector if cfg.overlap == "process" else PrefetchCollector
+        return ahead(build, policy, seed)
     if cfg.kind == "single":
         return Collector(partial(_seeded_env, env_factory, seed), policy, **common)
     factories = [partial(_seeded_env, env_factory, seed + i) for i in range(cfg.num_workers)]
@@ -237,7 +240,7 @@ def make_collector(
 
 def make_run_collector(
     cfg: TrainConfig, env_factory: EnvFactory, policy: torch.nn.Module, frames: int
-) -> Collector | MultiSyncCollector | PrefetchCollector:
+) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
     """:func:`make_collector` for the rest of a run that has collected ``frames``: seeded with
     ``cfg.seed + frames``, Ray workers starting from ``policy``'s current weights."""
     col, seed = cfg.collector, cfg.seed + frames

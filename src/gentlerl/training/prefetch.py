@@ -1,4 +1,6 @@
-"""Collection overlapped with learning: the next batch is collected on a thread.
+"""Collection overlapped with learning: the next batch is collected on a thread
+(:class:`PrefetchCollector`) or in a child process
+(:class:`~gentlerl.training.process_collector.ProcessCollector`).
 
 :class:`PrefetchCollector` iterates a TorchRL ``Collector`` one batch ahead on a background
 thread, so that the hands' physics (``mujoco.mj_step`` releases the GIL) and the policy run
