@@ -117,6 +117,34 @@ def test_adapter_turns_known_log1p_readings_into_the_impacts_of_eq_1():
     assert td[keys.OBSERVATION].shape == (3, 4) and td[keys.OBSERVATION].dtype == torch.float32
 
 
+def test_force_scale_changes_the_unit_of_the_force_the_rewards_read_not_the_observation():
+    # Hundredths: readings [0,0] -> [3,1] -> [3,4] N read as [0.03, 0.01] -> [0.03, 0.04].
+    env = TransformedEnv(
+        adapt_env(ScriptedTouchEnv(), force_scale=0.01), ImpactPenalty(in_keys=["force"])
+    )
+    check_env_specs(env)
+    td = env.rollout(3)
+    torch.testing.assert_close(td["next", "force"][1, :, 0], torch.tensor([0.03, 0.04]))
+    torch.testing.assert_close(
+        td["next", keys.IMPACT], torch.tensor([[0.03, 0.01], [0.0, 0.03], [0.0, 0.0]])
+    )
+    # the observation keeps the env's own reading, log1p of newtons
+    torch.testing.assert_close(td["next", "touch"][1], torch.log1p(torch.tensor([3.0, 4.0])))
+    cfg = make_config(env={"name": "dm_control:finger-spin", "force_scale": 0.01})
+    torch.manual_seed(1)
+    scaled = default_env_factory(cfg)().rollout(300)
+    torch.testing.assert_close(
+        scaled["next", "force"][..., 0], 0.01 * torch.expm1(scaled["next", "touch"])
+    )
+    for bad in (0.0, -1.0, float("inf")):
+        with pytest.raises(ValueError, match="force_scale must be a finite number > 0"):
+            adapt_env(ScriptedTouchEnv(), force_scale=bad)
+    with pytest.raises(ValueError, match="env.force_scale=0.5 applies to an external env only"):
+        make_config(env={"force_scale": 0.5})
+    with pytest.raises(ValueError, match="env.force_scale=0 must be > 0"):
+        make_config(env={"name": "dm_control:finger-spin", "force_scale": 0})
+
+
 def test_adapter_errors_name_what_is_missing():
     with pytest.raises(ValueError, match="unknown force adapter 'nope'"):
         adapt_env(ScriptedTouchEnv(), force_adapter="nope")

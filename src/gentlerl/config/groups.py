@@ -41,6 +41,14 @@ class EnvConfig:
     observation_keys: tuple[str, ...] | None = setting(
         None, "external env: entries concatenated into observation (null: all but pixels)"
     )
+    # The paper's lambda is in the newtons of the hand's fingertips; finger-spin's spinning
+    # contacts reach 200-1,600 N, so its penalty is ~100x the hand's (docs/FINGER.md).
+    force_scale: float = setting(
+        1.0,
+        "external env: the adapted force is multiplied by this before the rewards read it "
+        "(the unit lambda is in; 0.01 reads newtons as hundreds of newtons)",
+        bounds="> 0",
+    )
 
     @property
     def force(self) -> str:

@@ -116,6 +116,7 @@ def adapt_env(
     force_adapter: str = "dm_control_touch",
     force_key: str = FORCE,
     observation_keys: Sequence[str] | None = None,
+    force_scale: float = 1.0,
 ) -> TransformedEnv:
     """``env`` with float32 entries, ``force_key`` in newtons and a flat ``observation``.
 
@@ -125,7 +126,12 @@ def adapt_env(
         force_key: where the force lands (``none`` adapter: the env's own force entry).
         observation_keys: what ``observation`` concatenates (default: every observation entry
             of ``env`` but pixels, in spec order); one key named ``observation`` is kept as it is.
+        force_scale: multiplies the force the rewards read (the unit the penalty's lambda is
+            in: finger-spin's contacts reach hundreds of newtons, ``0.01`` reads them in
+            hundreds); the observation keeps the env's own reading.
     """
+    if not (isinstance(force_scale, int | float) and 0 < force_scale < float("inf")):
+        raise ValueError(f"force_scale must be a finite number > 0, got {force_scale!r}")
     if force_adapter not in FORCE_ADAPTERS:
         raise ValueError(
             f"unknown force adapter {force_adapter!r}; expected one of {sorted(FORCE_ADAPTERS)}"
@@ -148,6 +154,10 @@ def adapt_env(
                 f"(observation keys {sorted(map(str, spec.keys()))}); see FORCE_ADAPTERS"
             )
         transforms += adapter.build(adapter.source, force_key)
+    if force_scale != 1.0:
+        transforms.append(
+            UnaryTransform(in_keys=[force_key], out_keys=[force_key], fn=_Scale(force_scale))
+        )
     if list(observation_keys) != [keys.OBSERVATION]:
         transforms.append(
             CatTensors(list(observation_keys), keys.OBSERVATION, del_keys=False, sort=False)
@@ -161,6 +171,16 @@ def adapt_env(
             f"{force_adapter!r} (observation keys {sorted(map(str, out.observation_spec.keys()))})"
         )
     return out
+
+
+class _Scale:
+    """``x * factor``, picklable (a collector's worker process rebuilds the env)."""
+
+    def __init__(self, factor: float) -> None:
+        self.factor = float(factor)
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        return x * self.factor
 
 
 class ExternalEnv(TransformedEnv):
@@ -181,6 +201,7 @@ def make_external_env(
     force_adapter: str | None = None,
     force_key: str | None = None,
     observation_keys: Sequence[str] | None = None,
+    force_scale: float = 1.0,
     **kwargs,
 ) -> TransformedEnv:
     """The TorchRL env ``name`` (``"dm_control:<domain>-<task>"``) through :func:`adapt_env`.
@@ -196,6 +217,7 @@ def make_external_env(
         force_adapter=force_adapter or SOURCES[source],
         force_key=force_key or FORCE,
         observation_keys=observation_keys,
+        force_scale=force_scale,
     )
     if seed is not None:
         env.set_seed(seed)

@@ -61,6 +61,7 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
             force_adapter=env.force_adapter,
             force_key=env.force,
             observation_keys=env.observation_keys,
+            force_scale=env.force_scale,
             **env.kwargs,
         )
     from gentlerl.envs import make_env

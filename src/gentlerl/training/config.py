@@ -222,8 +222,8 @@ def _run_problems(cfg: TrainConfig) -> list[str]:
 
 def _env_problems(cfg: TrainConfig) -> list[str]:
     """``env.kwargs`` the hand's task accepts (listing the valid ones), ``env.name`` (a known
-    external env), ``env.force_adapter`` (a known adapter, only with an external env) and
-    ``env.observation_keys`` (only with an external env)."""
+    external env), ``env.force_adapter``, ``env.observation_keys`` and ``env.force_scale`` (only
+    with an external env; the adapter a known one)."""
     from gentlerl.envs.external import FORCE_ADAPTERS, check_name
     from gentlerl.envs.factory import TASKS, env_kwarg_names
 
@@ -234,6 +234,11 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
             for name in ("force_adapter", "observation_keys")
             if getattr(env, name) is not None
         ]
+        if env.force_scale != 1.0:
+            problems.append(
+                f"env.force_scale={env.force_scale!r} applies to an external env only "
+                "(set env.name; the hand's touch is in newtons)"
+            )
         if cfg.task in TASKS:
             valid = env_kwarg_names(cfg.task)
             unknown = sorted(set(env.kwargs) - set(valid))
