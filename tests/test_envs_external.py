@@ -19,11 +19,12 @@ from gentlerl.analysis.runs import find_runs
 from gentlerl.analysis.summary import summary_table
 from gentlerl.apps.evaluate import evaluate_policy
 from gentlerl.apps.train import config_from_hydra, register_configs
+from gentlerl.config import GentlenessConfig
 from gentlerl.envs.external import FORCE_ADAPTERS, adapt_env, make_external_env
 from gentlerl.models import make_actor
 from gentlerl.training import save_checkpoint
 from gentlerl.training.builders import default_env_factory
-from gentlerl.training.config import GentlenessConfig, make_config
+from gentlerl.training.config import make_config
 from gentlerl.training.evaluation import rank, summarize_episodes
 from gentlerl.training.logging import EpisodeStats
 from gentlerl.training.loop import train
@@ -130,6 +131,11 @@ def test_force_scale_changes_the_unit_of_the_force_the_rewards_read_not_the_obse
     )
     # the observation keeps the env's own reading, log1p of newtons
     torch.testing.assert_close(td["next", "touch"][1], torch.log1p(torch.tensor([3.0, 4.0])))
+    # also where the force is one of the env's own observation entries (adapter "none")
+    own = adapt_env(ScriptedTouchEnv(), force_adapter="none", force_key="touch", force_scale=0.5)
+    step = own.rollout(3)["next"][1]
+    torch.testing.assert_close(step[keys.OBSERVATION][-2:], torch.log1p(torch.tensor([3.0, 4.0])))
+    torch.testing.assert_close(step["touch"], 0.5 * torch.log1p(torch.tensor([3.0, 4.0])))
     cfg = make_config(env={"name": "dm_control:finger-spin", "force_scale": 0.01})
     torch.manual_seed(1)
     scaled = default_env_factory(cfg)().rollout(300)

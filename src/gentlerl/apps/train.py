@@ -7,7 +7,7 @@
 
 The config lives in the package (hydra's ``ConfigStore``): the schema is
 :class:`~gentlerl.training.TrainConfig`, ``scale=<name>`` applies a preset of
-:data:`~gentlerl.training.SCALES`, and every field is overridden as ``group.field=value``.
+:data:`~gentlerl.config.SCALES`, and every field is overridden as ``group.field=value``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 from gentlerl.config import SCALES
-from gentlerl.config.fields import get
+from gentlerl.config.fields import choices_of, get
 from gentlerl.training.config import TrainConfig, iter_fields, make_config
 
 #: Where a run goes unless ``run_dir=...`` is given (an external env's runs under its task name).
@@ -48,8 +48,8 @@ def describe() -> str:
     defaults = TrainConfig()
     lines = []
     for name, f in iter_fields():
-        choices = f.metadata.get("choices")
-        valid = f"  {{{', '.join(choices() if callable(choices) else choices)}}}" if choices else ""
+        choices = choices_of(f)
+        valid = f"  {{{', '.join(map(str, choices))}}}" if choices else ""
         # The app's run_dir is an interpolation of the run's identity, not the dataclass default.
         shown = "runs/<task>/<variant>/seed<seed>" if name == "run_dir" else get(defaults, name)
         lines.append(f"  {name}={_override(shown)}".ljust(42) + f" {f.metadata['help']}{valid}")

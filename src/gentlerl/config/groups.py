@@ -46,7 +46,8 @@ class EnvConfig:
     force_scale: float = setting(
         1.0,
         "external env: the adapted force is multiplied by this before the rewards read it "
-        "(the unit lambda is in; 0.01 reads newtons as hundreds of newtons)",
+        "(the unit lambda is in; 0.01 reads newtons as hundreds of newtons; reported impacts "
+        "are then in that unit)",
         bounds="> 0",
     )
 

@@ -128,7 +128,8 @@ def adapt_env(
             of ``env`` but pixels, in spec order); one key named ``observation`` is kept as it is.
         force_scale: multiplies the force the rewards read (the unit the penalty's lambda is
             in: finger-spin's contacts reach hundreds of newtons, ``0.01`` reads them in
-            hundreds); the observation keeps the env's own reading.
+            hundreds); the observation keeps the env's own reading, while impacts, penalties
+            and every reported max impact are in the scaled unit (N x ``force_scale``).
     """
     if not (isinstance(force_scale, int | float) and 0 < force_scale < float("inf")):
         raise ValueError(f"force_scale must be a finite number > 0, got {force_scale!r}")
@@ -154,10 +155,6 @@ def adapt_env(
                 f"(observation keys {sorted(map(str, spec.keys()))}); see FORCE_ADAPTERS"
             )
         transforms += adapter.build(adapter.source, force_key)
-    if force_scale != 1.0:
-        transforms.append(
-            UnaryTransform(in_keys=[force_key], out_keys=[force_key], fn=_Scale(force_scale))
-        )
     if list(observation_keys) != [keys.OBSERVATION]:
         transforms.append(
             CatTensors(list(observation_keys), keys.OBSERVATION, del_keys=False, sort=False)
@@ -169,6 +166,10 @@ def adapt_env(
         raise ValueError(
             f"force key {force_key!r} is not written by the env nor by adapter "
             f"{force_adapter!r} (observation keys {sorted(map(str, out.observation_spec.keys()))})"
+        )
+    if force_scale != 1.0:  # after the observation is built: it keeps the env's own reading
+        out.append_transform(
+            UnaryTransform(in_keys=[force_key], out_keys=[force_key], fn=_Scale(force_scale))
         )
     return out
 

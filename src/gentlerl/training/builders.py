@@ -179,10 +179,12 @@ def make_agent(cfg: TrainConfig, env_factory: EnvFactory) -> AgentParts:
     """The agent of ``cfg``, sized from one probe env of ``env_factory`` whose keys are checked
     first (:func:`check_env_keys`); the beta schedule spans the run's ``utd_ratio`` updates."""
     probe = env_factory()
-    builder = AgentBuilder(cfg, probe)
-    rewards = builder.make_intrinsic_rewards()
-    check_env_keys(probe, rewards)
-    probe.close()
+    try:
+        builder = AgentBuilder(cfg, probe)
+        rewards = builder.make_intrinsic_rewards()
+        check_env_keys(probe, rewards)
+    finally:
+        probe.close()
     learner = builder.make_learner()
     col = cfg.collector
     updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))

@@ -9,7 +9,8 @@ learner's actor weights, which the child loads before it collects: batch ``k + 1
 as batch ``k`` arrives, with the weights the learner had after training on batch ``k - 1`` (one
 batch of policy lag, whatever the timing). Batches come back in order, time-contiguous per env
 row; the child's global torch generator (random actions of ``init_random_frames``) is seeded
-with the envs. Same seed, same run: the same batches as the thread.
+with the envs. Same seed, same run; past ``init_random_frames`` the same batches as the thread
+(whose random actions draw from the learner process's generator instead).
 
 TorchRL's ``AsyncCollector`` (one worker process) was not used: it puts a CPU policy's weights
 in shared memory that its worker reads while it collects, and its iterator refreshes them only
@@ -99,9 +100,15 @@ class ProcessCollector:
         self._actor = policy[0]
         snapshot = snapshot_policy(policy)
         snapshot[1].generator.manual_seed(seed)
+        try:
+            setup = pickle.dumps((make_collector, snapshot))
+        except (pickle.PicklingError, TypeError, AttributeError) as err:
+            raise ValueError(
+                "collector.overlap=process sends the env factory to a child process, so it must "
+                f"be picklable (a module-level function or a partial of one): {err}"
+            ) from err
         context = multiprocessing.get_context("spawn")
         self._conn, child_conn = context.Pipe()
-        setup = pickle.dumps((make_collector, snapshot))
         self._process = context.Process(
             target=_serve, args=(child_conn, setup), name="collector", daemon=True
         )
@@ -139,8 +146,8 @@ class ProcessCollector:
 
     def _request_batch(self) -> None:
         """Ask for the next batch, collected with the learner's actor as it is now."""
-        weights = {k: v.detach().clone() for k, v in self._actor.state_dict().items()}
-        self._request("next", weights)
+        weights = {k: v.detach() for k, v in self._actor.state_dict().items()}
+        self._request("next", weights)  # pickled now: the learner's later steps do not reach it
 
     def __iter__(self) -> Iterator[TensorDictBase]:
         self._request_batch()
