@@ -174,3 +174,20 @@ def test_an_env_without_success_is_drawn_by_its_return_and_every_final_rollout(t
     assert judged_by_success(runs) is False
     assert sorted(final_impacts([r for r in runs if r.variant == "r"])) == [600.0, 700.0]
     assert len(successful_final_impacts(runs)) == 0  # the selection the hand's Fig. 5 uses
+
+
+def test_final_impacts_are_chosen_per_panel_when_hand_and_external_runs_mix(tmp_path, monkeypatch):
+    from gentlerl.analysis import figures
+
+    hand = _fake_run(tmp_path / "hand", "r", 0, 2.0, (0.0, 1.0, 1.0), [1.0])
+    rows = "3000,0,1,0,2.5,1\n3000,1,0,1,9.0,0\n"  # one success at 2.5 N, one break at 9 N
+    (hand / "final_eval_episodes.csv").write_text(EPISODES_HEADER + rows)
+    _external_run(tmp_path / "ext", "r", 0, (0.0, 50.0, 140.0), [600.0, 700.0])
+    drawn = {}
+    monkeypatch.setattr(figures, "_save", lambda fig, path: drawn.setdefault("fig", fig))
+    figures.plot_final_impacts(find_runs([tmp_path]), tmp_path)
+    legends = {
+        ax.get_title(): ax.get_legend().get_texts()[0].get_text() for ax in drawn["fig"].axes
+    }
+    assert legends["ext:spin: r"].startswith("r: 2 of 2")  # every rollout: no success outcome
+    assert legends["touch: r"].startswith("r: 1 successful of 2")  # the hand's Fig. 5 selection

@@ -101,23 +101,29 @@ def plot_impact_histograms(runs: Sequence[Run], out: Path) -> Path:
 
 def plot_final_impacts(runs: Sequence[Run], out: Path) -> Path:
     """Paper Fig. 5: max impact of the successful rollouts of each run's final policy
-    (:func:`gentlerl.analysis.runs.successful_final_impacts`); the legend names the episodes'
-    source."""
+    (:func:`gentlerl.analysis.runs.successful_final_impacts`), or of all its rollouts for an env
+    without a success outcome (decided per panel); the legend names the episodes' source."""
 
-    by_success = judged_by_success(runs)  # else an env without success: every rollout
-    which = "successful " if by_success else ""
+    def select(group: Sequence[Run]) -> np.ndarray:
+        by_success = judged_by_success(group)
+        return successful_final_impacts(group) if by_success else final_impacts(group)
 
     def note(group: list[Run], values: np.ndarray) -> str:
         episodes = sum(len(final_policy_episodes(r)[0]) for r in group)
         if not episodes:
             return "no final-policy episodes"
+        which = "successful " if judged_by_success(group) else ""
         return f"{len(values)} {which}of {episodes} ({final_sources(group)})"
 
+    every = (
+        ""
+        if all(map(judged_by_success, group_runs(runs).values()))
+        else " (every one where the env has no success outcome)"
+    )
     title = (
-        f"Max impact per {which}rollout of the final policy (episodes: evaluate = "
+        f"Max impact per successful rollout of the final policy{every} (episodes: evaluate = "
         f"{FINAL_EVAL_EPISODES}, in-loop = the run's last evaluation)"
     )
-    select = successful_final_impacts if by_success else final_impacts
     fig = _histograms(runs, select, note, title)
     return _save(fig, out / "final_impacts.png")
 
