@@ -227,16 +227,12 @@ class Trainer:
         return summary
 
     def _keep_best(self, result: dict[str, float]) -> None:
-        """Save the actor to ``best_policy.pt`` when this evaluation beats every earlier one.
-
-        DDPG policies can lose a solved task later in training (docs/REPRODUCTION.md), so the
-        best one (:func:`~gentlerl.training.evaluation.rank`) is kept apart from the last one.
-        """
+        """Save the actor to ``best_policy.pt`` when this evaluation beats every earlier one
+        (:func:`~gentlerl.training.evaluation.rank`): DDPG can lose a solved task later on."""
         if self.best_eval is not None and rank(result) <= rank(self.best_eval):
             return
         self.best_eval = dict(result)
-        state = {**self._policy_state(), "eval": self.best_eval}
-        save_checkpoint(self.layout.best_policy, state)
+        save_checkpoint(self.layout.best_policy, {**self._policy_state(), "eval": self.best_eval})
 
     # -- state ---------------------------------------------------------------------------
     def _policy_state(self) -> dict[str, Any]:
@@ -295,11 +291,9 @@ def _crossed(frames: int, batch_frames: int, every: int) -> bool:
 def train(cfg: TrainConfig, env_factory: EnvFactory | None = None) -> dict[str, float]:
     """Train (or, with ``cfg.resume``, continue) a run; returns the final evaluation summary.
 
-    ``env_factory`` builds the env (default: :func:`gentlerl.envs.make_env` for ``cfg.task``, or
-    the external env ``cfg.env.name``); it must write ``observation`` and the force key
-    ``cfg.env.force`` of ``ImpactPenalty``, and may write ``success`` and ``broken`` (without
-    them, evaluations are ranked by their return).
-    """
+    ``env_factory`` (default: the hand task ``cfg.task`` or the external env ``cfg.env.name``)
+    must write ``observation`` and the force ``cfg.env.force``, and may write ``success`` and
+    ``broken`` (without them, evaluations are ranked by their return)."""
     validate(cfg)  # before the lock: a refused config creates nothing
     with RunLock(cfg.run_dir):  # one writer per run directory
         return Trainer(cfg, env_factory).run()
