@@ -11,12 +11,12 @@ writes those to ``OUT/<task>/<variant>@lam<lambda'_2>/seed<k>.pt``. Evaluate a s
 
 from __future__ import annotations
 
-import argparse
 import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from gentlerl.analysis.runs import PRIMARY_LAM2
+from gentlerl.apps.parsing import command_parser
 from gentlerl.config.layout import CHECKPOINT
 
 
@@ -74,11 +74,7 @@ def export_runs(
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl export") -> None:
     """Export the runs named on the command line; print each file with its size."""
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description=__doc__.splitlines()[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
+    parser = command_parser(prog, __doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", help="checkpoint.pt files, run folders or sweep folders")
     parser.add_argument(
         "--out", default="docs/policies", help="root of <task>/<variant>/seed<k>.pt"

@@ -74,7 +74,7 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
     """
     run_dir, resume = checkpoint.parent, cfg.resume
     if resume is False:
-        if checkpoint.exists() or RunLayout(run_dir).has_started():
+        if RunLayout(run_dir).has_started():  # its checkpoint, or logs of a run that began
             raise ValueError(
                 f"run_dir={str(run_dir)!r} already holds a run; pass resume=true to continue it "
                 "(resume=auto: continue it or start), or choose another run_dir"
