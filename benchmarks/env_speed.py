@@ -4,7 +4,8 @@ Each control step is ``n_sub_steps`` = 25 MuJoCo steps of 2 ms (50 ms, 20 Hz). R
 (the same 25 sub-steps and random delta-position control, nothing else), the dm_control
 environment, the TorchRL env (``env.step`` feeding each step's ``"next"`` back in; and with
 ``step_mdp``), its ``rollout``, the batched env (``make_env(num_envs=N)``, total frames/s over its
-hands) and a 2-worker ``ParallelEnv`` (total). The ``explore`` task is used so that no episode
+hands), TorchRL ``Collector`` s as training runs them (200-frame batches; a random policy, or the
+actor with exploration noise; 1, 4 or 8 hands) and a 2-worker ``ParallelEnv`` (total). The ``explore`` task is used so that no episode
 ends early. It also measures how often uniformly random actions touch the block, succeed or break
 it. Run: ``python benchmarks/env_speed.py [--steps 3000] [--episodes 100] [--markdown]``.
 """
@@ -17,11 +18,17 @@ from collections.abc import Callable
 
 import numpy as np
 import torch
+from torchrl.collectors import Collector
 from torchrl.envs import ParallelEnv
 from torchrl.envs.utils import step_mdp
 
 from gentlerl import keys
 from gentlerl.envs import make_dm_env, make_env
+from gentlerl.envs.hand import FLAT_SIZE, N_ACTUATORS
+from gentlerl.models import make_actor, make_exploration_policy
+
+#: Frames per collector batch in the collector rows (the training recipe's).
+BATCH = 200
 
 
 def _rates(runs: dict[str, tuple[Callable[[int], None], int]], steps: int, repeats: int = 5):
@@ -113,6 +120,37 @@ def batched_rollout(num_envs: int, num_threads: int) -> Callable[[int], None]:
     return lambda n: env.rollout(n, break_when_any_done=False)
 
 
+def collector(num_envs: int, *, actor: bool) -> Callable[[int], None]:
+    """A TorchRL ``Collector`` as training uses it (``run(n)`` pulls ``n`` batches of ``BATCH``
+    frames): a random policy (the ``init_random_frames`` phase) or the paper-size actor with
+    Gaussian exploration noise; ``num_envs`` hands per env step on one thread."""
+
+    def make():
+        return make_env("explore", seed=0, time_limit=10**9, num_envs=num_envs, num_threads=1)
+
+    policy = None
+    if actor:
+        net = make_actor(FLAT_SIZE, N_ACTUATORS)
+        policy = make_exploration_policy(net, 0.3, action_dim=N_ACTUATORS)
+    batches = iter(
+        Collector(
+            make if num_envs > 1 else _make_explore,
+            policy,
+            frames_per_batch=BATCH,
+            total_frames=-1,
+            init_random_frames=0 if actor else 10**12,
+            auto_register_policy_transforms=False,
+            device="cpu",  # as training's collectors (no per-step casts)
+        )
+    )
+
+    def run(n):
+        for _ in range(n):
+            next(batches)
+
+    return run
+
+
 def _make_explore():
     return make_env("explore", seed=0, time_limit=10**9)
 
@@ -135,6 +173,10 @@ def main() -> None:
         "BatchedHandEnv.rollout, 4 hands, 1 thread (total)": (batched_rollout(4, 1), 4),
         "BatchedHandEnv.rollout, 4 hands, 2 threads (total)": (batched_rollout(4, 2), 4),
         "BatchedHandEnv.rollout, 8 hands, 2 threads (total)": (batched_rollout(8, 2), 8),
+        "Collector, 1 hand, random policy": (collector(1, actor=False), BATCH),
+        "Collector, 1 hand, actor + noise": (collector(1, actor=True), BATCH),
+        "Collector, 4 hands, 1 thread, actor + noise": (collector(4, actor=True), BATCH),
+        "Collector, 8 hands, 1 thread, actor + noise": (collector(8, actor=True), BATCH),
         f"ParallelEnv, {workers} workers (total)": (
             lambda n: parallel.rollout(n, break_when_any_done=False),
             workers,

@@ -136,6 +136,9 @@ class NStepWriter:
         ready = self.transform.inv(batch)
         if ready is not None:
             if self.window_keys:
+                # The windows have one more batch dim than ``ready``: a collector's dim names
+                # (["time"]) would be forced onto them.
+                ready.names = None
                 steps = joined.select(*self.window_keys)
                 ready.set(WINDOW, nstep_windows(steps, self.n_steps, ready.shape[-1]))
             self.rb.extend(ready.reshape(-1))

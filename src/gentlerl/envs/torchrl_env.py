@@ -27,6 +27,7 @@ N_SITES = len(TOUCH_SITES)
 #: The bool ``[1]`` entries of every step, in the order of the flag array of :func:`hand_tensordict`.
 FLAG_KEYS = (keys.SUCCESS, keys.BROKEN, keys.TERMINATED, keys.TRUNCATED, keys.DONE)
 _NOT_DONE = (False, False, False)
+_CPU = torch.device("cpu")
 
 
 def _flag() -> Categorical:
@@ -92,7 +93,9 @@ def hand_tensordict(
     if reward is not None:
         out[keys.REWARD] = torch.from_numpy(reward)
     out.update(extra)
-    return TensorDict._new_unsafe(out, batch_size=torch.Size(batch), nested=False)
+    # On the CPU, as its tensors: a tensordict without a device is cast (``.to``) whenever a
+    # collector sets it into its own CPU tensordict, at every step.
+    return TensorDict._new_unsafe(out, batch_size=torch.Size(batch), device=_CPU, nested=False)
 
 
 class HandEnv(EnvBase):

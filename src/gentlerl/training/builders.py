@@ -221,6 +221,9 @@ def make_collector(
         init_random_frames=random_left,
         # The policy is stateless: the env needs no InitTracker / primer (and no FutureWarning).
         auto_register_policy_transforms=False,
+        # One device for env, policy and batch: TorchRL then casts nothing at each step (left
+        # unset, it copies the whole step's tensordict ``.to(env_device)`` every step).
+        device=next(policy.parameters()).device,
     )
     env_factory = collection_env_factory(cfg, env_factory)
     if cfg.kind == "single" and cfg.overlap:
