@@ -147,3 +147,25 @@ def test_writes_shorter_than_n_steps_lose_nothing_across_a_resume():
     assert len(resumed) == len(straight)
     again = nstep_return(resumed[WINDOW, "next", "penalty"], resumed["steps_to_next_obs"], 0.9)
     torch.testing.assert_close(again, resumed["next", "penalty"])
+
+
+def test_writer_windows_keep_each_env_row_of_a_named_collector_batch_apart():
+    """A collector's ``[B, T]`` batch names its time dim; each row's windows hold that row's steps
+    and sum back to its stored n-step penalty."""
+    rb = make_replay_buffer(100, 4, prioritized=False, n_steps=None)
+    writer = NStepWriter(
+        rb, 3, 0.9, ["reward", "penalty"], window_keys=["observation", ("next", "penalty")]
+    )
+    rows = torch.stack([_trajectory(terminal_at=11), _trajectory(terminal_at=11)])
+    rows["observation"][1] += 100.0  # row 1's observations are 100 .. 111
+    rows = rows.to("cpu")  # a collector batch has a device, and names its time dim
+    rows.names = [None, "time"]
+    writer.extend(rows)
+    stored = rb[:]
+    assert len(rb) == 2 * (12 - 3)
+    firsts = stored[WINDOW, "observation"][:, 0, 0]
+    assert sorted(firsts.tolist()) == [*range(9), *range(100, 109)]
+    for window in stored[WINDOW, "observation"][..., 0].tolist():
+        assert window == [window[0], window[0] + 1, window[0] + 2]  # never across rows
+    again = nstep_return(stored[WINDOW, "next", "penalty"], stored["steps_to_next_obs"], 0.9)
+    torch.testing.assert_close(again, stored["next", "penalty"])
