@@ -12,7 +12,6 @@ reads as the final policy's episodes (paper Fig. 5).
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import os
@@ -24,6 +23,7 @@ import numpy as np
 import torch
 
 from gentlerl.apps.outputs import check_output_file
+from gentlerl.apps.parsing import command_parser
 from gentlerl.envs import CALIBRATIONS, TASKS, make_env
 
 SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
@@ -119,16 +119,16 @@ def write_episodes(
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl evaluate") -> dict[str, float]:
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = command_parser(prog, __doc__.splitlines()[0])
     parser.add_argument(
         "policy", help="a run's checkpoint.pt or best_policy.pt, or an exported policy file"
     )
-    parser.add_argument("--episodes", type=int, default=50, help="default: %(default)s")
-    parser.add_argument("--task", choices=TASKS, help="default: the task the policy trained on")
+    parser.add_argument("--episodes", type=int, default=50, help="episodes to run")
+    parser.add_argument("--task", choices=TASKS, help="task; None: the one the policy trained on")
     parser.add_argument(
-        "--calibration", choices=list(CALIBRATIONS), help="default: the policy's own"
+        "--calibration", choices=list(CALIBRATIONS), help="hand calibration; None: the policy's own"
     )
-    parser.add_argument("--seed", type=int, default=0, help="block placements; default: 0")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the block placements")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--episodes-csv", help="also write one row per episode to this CSV")
     args = parser.parse_args(argv)
