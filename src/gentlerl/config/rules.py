@@ -17,7 +17,8 @@ from gentlerl.config.groups import (
 
 def collector_problems(col: CollectorConfig) -> list[str]:
     """Overlap is false, true (a thread) or process, and needs the single collector; a batch
-    splits evenly over ``num_envs`` hands, which only the single collector batches."""
+    splits evenly over ``num_envs`` hands, which only the single collector batches (the multi and
+    Ray collectors step one hand per worker)."""
     problems = []
     if col.overlap not in OVERLAPS:
         problems.append(f"collector.overlap={col.overlap!r} must be true, false or process")
@@ -31,10 +32,10 @@ def collector_problems(col: CollectorConfig) -> list[str]:
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_envs={col.num_envs}"
         )
-    if col.kind == "multi" and col.num_envs not in (None, 1):
+    if col.kind != "single" and col.num_envs not in (None, 1):
         problems.append(
-            f"collector.num_envs={col.num_envs} with collector.kind=multi: batched envs run in "
-            "the single collector (num_envs=1 with multi; scale with num_workers)"
+            f"collector.num_envs={col.num_envs} with collector.kind={col.kind}: batched envs run "
+            f"in the single collector (num_envs=1 with {col.kind}; scale with num_workers)"
         )
     return problems
 

@@ -24,19 +24,15 @@ if TYPE_CHECKING:
 
 def ray_problems(col: CollectorConfig) -> list[str]:
     """The Ray collector's rules beyond each field's declared range (one line per problem):
-    with ``kind=ray`` a batch splits evenly over the workers, each stepping one hand; a cluster
-    address must parse, whatever the kind."""
+    with ``kind=ray`` a batch splits evenly over the workers; a cluster address must parse,
+    whatever the kind. (One hand per worker is :func:`gentlerl.config.rules.collector_problems`'
+    rule, shared with the multi collector.)"""
     problems = []
     if col.kind == "ray" and col.num_workers >= 1 and col.frames_per_batch % col.num_workers:
         problems.append(
             f"collector.frames_per_batch={col.frames_per_batch} must be a multiple of "
             f"collector.num_workers={col.num_workers} with collector.kind=ray (each Ray worker "
             "collects an equal share of a batch)"
-        )
-    if col.kind == "ray" and col.num_envs not in (None, 1):
-        problems.append(
-            f"collector.num_envs={col.num_envs} with collector.kind=ray: one hand per Ray worker "
-            "(num_envs=1); scale with num_workers"
         )
     if col.ray_address not in (None, "auto"):
         try:
