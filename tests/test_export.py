@@ -37,13 +37,14 @@ def test_exported_policy_acts_and_evaluates_like_the_checkpoint(tmp_path):
     assert sum(int(r["success"]) for r in rows) / 2 == shipped["success_rate"]
 
 
-def _checkpoint(path, task="touch", variant="r", seed=0, lam2=2.0, hidden=(8,)):
+def _checkpoint(path, task="touch", variant="r", seed=0, lam2=2.0, hidden=(8,), env_name=None):
     cfg = make_config(
         task=task, variant=variant, seed=seed, gentleness={"lam_prime": (2.0, lam2)},
         network={"actor_hidden": hidden},
-    )  # fmt: skip
+    ).to_dict()  # fmt: skip
+    cfg["env"]["name"] = env_name  # a run on an external env keeps task's default ("touch")
     actor = make_actor(63, 20, hidden)
-    state = {"config": cfg.to_dict(), "obs_dim": 63, "action_dim": 20, "actor": actor.state_dict()}
+    state = {"config": cfg, "obs_dim": 63, "action_dim": 20, "actor": actor.state_dict()}
     save_checkpoint(path, {**state, "counters": {"frames": 60_000}, "rb": torch.zeros(1000, 100)})
     return path
 
@@ -55,6 +56,9 @@ def test_runs_export_to_task_variant_seed_at_the_primary_lambda(tmp_path, capsys
     _checkpoint(runs / "c" / "checkpoint.pt", "touch", "r+rf+rsp", lam2=3.0)
     _checkpoint(runs / "d" / "checkpoint.pt", "fragile", "r+rf+rsp", seed=1, lam2=1.5)
     _checkpoint(runs / "e" / "checkpoint.pt", "explore", "rs")  # not a touch / fragile run
+    _checkpoint(
+        runs / "f" / "checkpoint.pt", "touch", "r", seed=5, env_name="dm_control:finger-spin"
+    )
     main([str(runs), "--out", str(tmp_path / "policies")])
     written = sorted(p.relative_to(tmp_path / "policies").as_posix()
                      for p in (tmp_path / "policies").rglob("*.pt"))  # fmt: skip

@@ -10,7 +10,7 @@ may also be a folder of runs (searched recursively). Runs that differ only by se
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,11 +59,16 @@ class Run:
     @property
     def task(self) -> str | None:
         """The hand's task, or the external env a run trained on (``env.name``)."""
-        return self.setting("env", "name") or self.config.get("task")
+        return run_task(self.config)
 
     @property
     def group(self) -> tuple:
         return (self.task, self.label)
+
+
+def run_task(config: Mapping[str, Any]) -> str | None:
+    """The hand's task of a run's ``config``, or the external env it trained on (``env.name``)."""
+    return (config.get("env") or {}).get("name") or config.get("task")
 
 
 def _read_series(path: Path) -> Series:

@@ -15,7 +15,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from gentlerl.analysis.runs import PRIMARY_LAM2
+from gentlerl.analysis.runs import PRIMARY_LAM2, run_task
 from gentlerl.apps.parsing import command_parser
 from gentlerl.config.layout import CHECKPOINT
 
@@ -63,7 +63,7 @@ def export_runs(
     for ckpt in find_checkpoints(paths):
         policy = policy_file_state(load_checkpoint(ckpt), ckpt)
         dest = policy_path(policy["config"], out, all_lambdas)
-        if policy["config"]["task"] not in tasks or dest is None:
+        if run_task(policy["config"]) not in tasks or dest is None:  # external envs: skipped
             continue
         if dest in written:
             raise ValueError(f"{written[dest]} and {ckpt} would both be exported to {dest}")
