@@ -9,6 +9,7 @@ may also be a folder of runs (searched recursively). Runs that differ only by se
 
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -172,10 +173,21 @@ def after_intrinsic_start(runs: Sequence[Run], *, with_zeros: bool = False) -> n
 
 def _episode_rows(path: Path) -> np.ndarray:
     """The rows of an episodes CSV (columns ``frames, episode, success, broken, max_impact,
-    return``) as a structured array; empty if the file is missing or empty."""
-    if not path.is_file() or path.stat().st_size == 0:
+    return``) as a read-only structured array; empty if the file is missing or empty. A figure
+    asks for the same files many times: each version of a file (path, mtime, size) is parsed once.
+    """
+    stat = path.stat() if path.is_file() else None
+    if stat is None or stat.st_size == 0:
         return np.zeros(0, dtype=[("frames", float), ("success", float), ("max_impact", float)])
-    return np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    return _parse_episodes(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=512)
+def _parse_episodes(path: str, mtime_ns: int, size: int) -> np.ndarray:
+    """:func:`_episode_rows` of one version of a file (``mtime_ns`` and ``size`` key the cache)."""
+    rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    rows.flags.writeable = False
+    return rows
 
 
 def final_eval_episodes(run: Run) -> np.ndarray:
