@@ -141,3 +141,30 @@ def test_osmesa_requested_but_missing_is_a_clear_error(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "ERR no OpenGL backend to render with" in out.stdout
     assert "libosmesa6" in out.stdout
+
+
+def test_steps_carry_the_cpu_device_and_collectors_cast_nothing(hand_env):
+    """Device-less tensordicts made TorchRL's collector copy every step ``.to("cpu")``: the env's
+    outputs name their device, and training's collector runs env, policy and batch on one."""
+    from functools import partial
+
+    from gentlerl.config import CollectorConfig
+    from gentlerl.models import make_actor, make_exploration_policy
+    from gentlerl.training.builders import make_collector
+
+    env = hand_env("touch", seed=0)
+    td = env.reset()
+    assert td.device == torch.device("cpu")
+    assert env.rand_step(td)["next"].device == torch.device("cpu")
+    policy = make_exploration_policy(make_actor(63, 20, (8,)), 0.3, action_dim=20)
+    collector = make_collector(
+        CollectorConfig(frames_per_batch=8, num_envs=2, env_threads=1),
+        partial(make_env, "explore", time_limit=50), policy, 16, 0, seed=0,
+    )  # fmt: skip
+    try:
+        devices = {collector.env_device, collector.policy_device, collector.storing_device}
+        assert devices == {torch.device("cpu")}
+        batch = next(iter(collector))
+        assert batch.batch_size == (2, 4) and batch.device == torch.device("cpu")
+    finally:
+        collector.shutdown()
