@@ -206,9 +206,8 @@ def make_collector(
     :class:`~gentlerl.training.prefetch.PrefetchCollector`) or in a child process
     (``"process"``: :class:`~gentlerl.training.process_collector.ProcessCollector`).
 
-    Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset, so the
-    first episode (its block position) is reproducible too; ``collector.set_seed`` comes too late
-    for it.
+    Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset (the first
+    block position too; ``collector.set_seed`` comes too late for it).
 
     The multi-process collector is the *synchronous* one: it stacks the workers' batches into
     ``[num_workers, T]``, so each row stays time-contiguous across batches (what the n-step
@@ -221,9 +220,7 @@ def make_collector(
         init_random_frames=random_left,
         # The policy is stateless: the env needs no InitTracker / primer (and no FutureWarning).
         auto_register_policy_transforms=False,
-        # One device for env, policy and batch: TorchRL then casts nothing at each step (left
-        # unset, it copies the whole step's tensordict ``.to(env_device)`` every step).
-        device=next(policy.parameters()).device,
+        device=next(policy.parameters()).device,  # one device: TorchRL casts nothing per step
     )
     env_factory = collection_env_factory(cfg, env_factory)
     if cfg.kind == "single" and cfg.overlap:
