@@ -207,7 +207,8 @@ def make_collector(
     (``"process"``: :class:`~gentlerl.training.process_collector.ProcessCollector`).
 
     Worker ``i``'s env is seeded with ``seed + i`` before the collector's first reset (the first
-    block position too; ``collector.set_seed`` comes too late for it).
+    block position too; ``collector.set_seed`` comes too late for it). Env, policy and batch share
+    the policy's device, so that TorchRL casts nothing at each step.
 
     The multi-process collector is the *synchronous* one: it stacks the workers' batches into
     ``[num_workers, T]``, so each row stays time-contiguous across batches (what the n-step
@@ -218,9 +219,8 @@ def make_collector(
         frames_per_batch=cfg.frames_per_batch,
         total_frames=frames_left,
         init_random_frames=random_left,
-        # The policy is stateless: the env needs no InitTracker / primer (and no FutureWarning).
-        auto_register_policy_transforms=False,
-        device=next(policy.parameters()).device,  # one device: TorchRL casts nothing per step
+        auto_register_policy_transforms=False,  # a stateless policy: no InitTracker / primer
+        device=next((p.device for p in policy.parameters()), None),  # no per-step casts
     )
     env_factory = collection_env_factory(cfg, env_factory)
     if cfg.kind == "single" and cfg.overlap:
