@@ -24,6 +24,18 @@ def _constant_actor() -> TensorDictModule:
     )
 
 
+def _actions_while_training(collector, actor) -> list[list[float]]:
+    """Each batch's distinct first action dims, the learner's actor moved after every batch (its
+    bias to 0.1 x k after batch k - 1); the collector is shut down at the end."""
+    seen = []
+    for k, batch in enumerate(collector):
+        seen.append(batch[keys.ACTION][:, 0].unique().tolist())
+        with torch.no_grad():  # "training" on batch k moves the learner's actor
+            actor.module[0].bias.fill_(0.1 * (k + 1))
+    collector.shutdown()
+    return seen
+
+
 def test_batch_k_is_collected_with_the_weights_after_training_on_batch_k_minus_2():
     actor = _constant_actor()
     policy = make_exploration_policy(actor, sigma=0.0, action_dim=20)
@@ -37,12 +49,7 @@ def test_batch_k_is_collected_with_the_weights_after_training_on_batch_k_minus_2
         ),
         policy,
     )
-    seen = []
-    for k, batch in enumerate(collector):
-        seen.append(batch[keys.ACTION][:, 0].unique().tolist())
-        with torch.no_grad():  # "training" on batch k moves the learner's actor
-            actor.module[0].bias.fill_(0.1 * (k + 1))
-    collector.shutdown()
+    seen = _actions_while_training(collector, actor)
     expected = [0.0, 0.0, 0.1, 0.2, 0.3, 0.4]
     assert [len(s) for s in seen] == [1] * 6
     torch.testing.assert_close(

@@ -14,7 +14,7 @@ from gentlerl.models import make_exploration_policy
 from gentlerl.training import Trainer, make_config
 from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.training.process_collector import ProcessCollector
-from tests.test_prefetch import _constant_actor
+from tests.test_prefetch import _actions_while_training, _constant_actor
 from tests.test_training_loop import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
 
@@ -43,12 +43,7 @@ def test_batch_k_is_collected_with_the_weights_after_training_on_batch_k_minus_2
     actor = _constant_actor()
     policy = make_exploration_policy(actor, sigma=0.0, action_dim=20)
     collector = ProcessCollector(_collector(), policy)
-    seen = []
-    for k, batch in enumerate(collector):
-        seen.append(batch[keys.ACTION][:, 0].unique().tolist())
-        with torch.no_grad():  # "training" on batch k moves the learner's actor
-            actor.module[0].bias.fill_(0.1 * (k + 1))
-    collector.shutdown()
+    seen = _actions_while_training(collector, actor)
     assert [len(s) for s in seen] == [1] * 6
     expected = torch.tanh(torch.tensor([0.0, 0.0, 0.1, 0.2, 0.3, 0.4]))
     torch.testing.assert_close(torch.tensor([s[0] for s in seen]), expected)
