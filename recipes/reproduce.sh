@@ -17,15 +17,17 @@
 #     frames at the paper's hyper-parameters; about 1 h per run on a 2-core CPU, plan for a cluster.
 # --method changes (default): the CPU-scale changes to the method (NLL floor 0, penalty support
 # capped at 0, non-episodic intrinsic heads, dynamics surprise x 0.002, dense heads' supports
-# spanning the discounted horizon); --method published: the method as the paper gives it
-# (gentleness.surprise_nll_floor=null network.bounded_support=false
-# learner.episodic_intrinsic=true gentleness.dynamics_surprise_scale=1, and the paper's support
-# (-100, 100) for every head: network.v_min=-100 network.v_max=100
-# network.dense_reward_bound=null). Both are needed for the two rows of each claim. The ablation
+# spanning the discounted horizon, r^sp recomputed when sampled); --method published: the method
+# as the paper gives it (gentleness.surprise_nll_floor=null network.bounded_support=false
+# learner.episodic_intrinsic=true gentleness.dynamics_surprise_scale=1
+# gentleness.recompute_surprise=false, and the paper's support (-100, 100) for every head:
+# network.v_min=-100 network.v_max=100 network.dense_reward_bound=null). Both are needed for the
+# two rows of each claim. The ablation
 # methods switch off one change at a time from `changes`: --method no-nll-floor
 # (gentleness.surprise_nll_floor=null), no-support-cap (network.bounded_support=false), episodic
 # (learner.episodic_intrinsic=true), unscaled-rs (gentleness.dynamics_surprise_scale=1),
-# shared-support (network.dense_reward_bound=null: [v_min, v_max] = [-10, 10] for every head).
+# shared-support (network.dense_reward_bound=null: [v_min, v_max] = [-10, 10] for every head),
+# no-recompute (gentleness.recompute_surprise=false: r^sp as stored at collection).
 #
 # Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/REPRODUCTION.md (measured there).
 #
@@ -69,15 +71,17 @@ case "$method" in
   published) extra+=(--set gentleness.surprise_nll_floor=null --set network.bounded_support=false
                      --set learner.episodic_intrinsic=true
                      --set gentleness.dynamics_surprise_scale=1
+                     --set gentleness.recompute_surprise=false
                      --set network.v_min=-100 --set network.v_max=100
                      --set network.dense_reward_bound=null) ;;
   shared-support) extra+=(--set network.dense_reward_bound=null) ;;
+  no-recompute) extra+=(--set gentleness.recompute_surprise=false) ;;
   no-nll-floor) extra+=(--set gentleness.surprise_nll_floor=null) ;;
   no-support-cap) extra+=(--set network.bounded_support=false) ;;
   episodic) extra+=(--set learner.episodic_intrinsic=true) ;;
   unscaled-rs) extra+=(--set gentleness.dynamics_surprise_scale=1) ;;
   *) echo "--method must be changes, published, no-nll-floor, no-support-cap, episodic," \
-       "unscaled-rs or shared-support, got $method" >&2; exit 2 ;;
+       "unscaled-rs, shared-support or no-recompute, got $method" >&2; exit 2 ;;
 esac
 for sweep in ${sweeps_run//,/ }; do
   case "$sweep" in

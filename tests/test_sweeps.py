@@ -1,5 +1,6 @@
 """Local sweep runner: grid expansion, resumability, and one real (tiny) recipe run."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -8,6 +9,7 @@ import yaml
 from gentlerl.apps.grid import expand, restrict, run_grid
 from gentlerl.apps.sweep_files import load_sweep
 from gentlerl.apps.sweeps import main
+from gentlerl.config.presets import SCALES
 
 SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
 TINY = [
@@ -84,3 +86,32 @@ def test_a_real_tiny_grid_runs_the_recipe_and_then_skips_it(tmp_path):
     assert config["gentleness"]["lam_prime"] == [2.0, 1.5]
     assert main(args) == 0  # second time: skipped, nothing re-run
     assert (run / "stdout.log").read_text().count("success_rate=") == 1
+
+
+def _method_settings(method: str) -> dict[str, str]:
+    """The ``--set KEY=VALUE`` pairs that ``recipes/reproduce.sh --method METHOD`` adds."""
+    text = (SWEEPS.parent / "reproduce.sh").read_text()
+    block = re.search(rf"^\s*{re.escape(method)}\) extra\+=\((.*?)\) ;;", text, re.M | re.S)
+    assert block is not None, f"no --method {method} in reproduce.sh"
+    return dict(pair.split("=", 1) for pair in re.findall(r"--set (\S+)", block.group(1)))
+
+
+def test_the_published_method_switches_off_every_cpu_scale_change_as_the_paper_preset_does():
+    # Every switch the cpu scale turns on for the method (not the budget or the net sizes): the
+    # row as published must turn each off, to the value the `paper` scale gives it.
+    published = _method_settings("published")
+    expected_keys = {
+        "gentleness.surprise_nll_floor", "network.bounded_support", "learner.episodic_intrinsic",
+        "gentleness.dynamics_surprise_scale", "gentleness.recompute_surprise", "network.v_min",
+        "network.v_max", "network.dense_reward_bound",
+    }  # fmt: skip
+    assert set(published) == expected_keys
+    for key, value in published.items():
+        group, field = key.split(".")
+        preset = SCALES["paper"][group][field]
+        assert yaml.safe_load(value) == preset, (key, value, preset)
+    # Each ablation switches off one change, to the published value.
+    for method, key in (("no-recompute", "gentleness.recompute_surprise"),
+                        ("shared-support", "network.dense_reward_bound"),
+                        ("no-nll-floor", "gentleness.surprise_nll_floor")):  # fmt: skip
+        assert _method_settings(method) == {key: published[key]}
