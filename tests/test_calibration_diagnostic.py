@@ -15,11 +15,13 @@ from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.training.checkpoint import save_checkpoint
 from gentlerl.training.critic_calibration import (
+    SOURCE_SCALARS,
     calibration_scalars,
     calibration_stats,
     discounted_returns,
     expected_value,
     measure_calibration,
+    penalty_surprise_sources,
 )
 from gentlerl.training.evaluation import rollout_episodes
 from gentlerl.transforms import ImpactPenalty
@@ -211,6 +213,20 @@ def test_calibration_command_prints_every_head_and_mode(hand_run, tmp_path, caps
     # The noisy actions are not the actor's: the critic is read at other actions.
     predicted = [report["modes"][m]["reward"]["all"]["predicted"] for m in report["modes"]]
     assert predicted[0] != predicted[1]
+    # Where the penalty surprise of contact steps comes from, per mode: its parts add up.
+    for mode, x in report["penalty_surprise_sources"].items():
+        assert 0 < x["contact_steps"] <= x["steps"]
+        assert x["r_sp"] == pytest.approx(x["curiosity"] + x["refund"], rel=1e-4)
+        assert x["nll"] == pytest.approx(x["spread"] + x["error"], rel=1e-5)
+        assert x["z2"] == pytest.approx(2 * x["error"]) and x["refund"] > 0
+        assert f"penalty surprise, {mode}: {x['contact_steps']} contact steps" in text
+    assert set(report["penalty_surprise_sources"]) == {"deterministic", "noisy"}
+
+
+def test_penalty_surprise_sources_need_a_penalty_surprise():
+    env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
+    episodes = rollout_episodes(env, None, 1, 5)
+    assert penalty_surprise_sources(ImpactPenalty(), episodes) is None
 
 
 def test_calibration_command_reproduces_the_runs_logged_scalars(hand_run):
@@ -220,6 +236,9 @@ def test_calibration_command_reproduces_the_runs_logged_scalars(hand_run):
         [str(hand_run / "checkpoint.pt"), "--episodes", "2", "--seed", "10003"]
     )
     logged = calibration_scalars(report["modes"]["deterministic"])
+    sources = report["penalty_surprise_sources"]["deterministic"]
+    assert sources["contact_steps"] > 0
+    logged |= {f"surprise_sources/{k}": sources[k] for k in SOURCE_SCALARS}
     for name, value in logged.items():
         assert read_scalar(hand_run, name) == [(300, pytest.approx(value, abs=1e-4))], name
 

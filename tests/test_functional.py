@@ -11,6 +11,7 @@ from gentlerl.functional import (
     acceptability,
     force_penalty,
     gaussian_nll,
+    gaussian_nll_parts,
     impact,
     impact_penalty,
     mixture_moments,
@@ -98,6 +99,17 @@ def test_gaussian_nll_standard_normal():
     assert gaussian_nll(torch.tensor(3.0), torch.tensor(3.0), torch.tensor(4.0)).item() == (
         pytest.approx(0.5 * math.log(8 * math.pi))
     )
+
+
+def test_gaussian_nll_parts_are_the_spread_and_the_error_and_sum_to_it():
+    # x = 3 under N(1, 4): spread 0.5 log(8 pi) = 1.6121, error 0.5 * 4 / 4 = 0.5.
+    spread, error = gaussian_nll_parts(torch.tensor(3.0), torch.tensor(1.0), torch.tensor(4.0))
+    assert spread.item() == pytest.approx(0.5 * math.log(8 * math.pi))
+    assert error.item() == pytest.approx(0.5)
+    x, mean, var = torch.randn(50), torch.randn(50), torch.rand(50) + 1e-3
+    torch.testing.assert_close(sum(gaussian_nll_parts(x, mean, var)), gaussian_nll(x, mean, var))
+    with pytest.raises(ValueError, match="min_var"):
+        gaussian_nll_parts(x, mean, var, min_var=0.0)
 
 
 def test_gaussian_nll_floors_collapsed_variance():

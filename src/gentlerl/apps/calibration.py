@@ -10,6 +10,11 @@ Columns: ``predicted`` and ``realised`` means, ``bias`` = predicted - realised, 
 absolute error per step, ``rel_err`` = |bias| / max(|realised|, 0.1), ``outside`` the fraction of
 realised returns outside the head's support, ``boot`` the part of the realised mean that is the
 critic's own bootstrap (truncation; termination too for non-episodic heads).
+
+With penalty surprise, a last line per mode says where its bonus on contact steps comes from
+(:func:`~gentlerl.training.critic_calibration.penalty_surprise_sources`): the curiosity
+a' s nll and the refund -a' r^f, the NLL's spread and error terms, the penalty model's mean squared
+z-score and its aleatoric / epistemic variance.
 """
 
 from __future__ import annotations
@@ -100,14 +105,16 @@ def critic_calibration(
     ``{"checkpoint", "task", "variant", "frames", "gamma", "sigma", "intrinsic_on", "episodes",
     "seed", "supports": {head: [v_min, v_max]}, "not_saved": [config fields], "modes": {mode:
     {head: {"all" | "start": stats}}}}`` (see
-    :func:`~gentlerl.training.critic_calibration.measure_calibration`).
+    :func:`~gentlerl.training.critic_calibration.measure_calibration`), and for a variant with
+    penalty surprise ``"penalty_surprise_sources": {mode: stats}``
+    (:func:`~gentlerl.training.critic_calibration.penalty_surprise_sources`).
 
     Both modes start from the same block placements (the env is seeded with ``seed``).
     """
     from gentlerl.envs import make_env
     from gentlerl.models import make_exploration_policy
     from gentlerl.training.builders import default_env_factory, make_eval_env
-    from gentlerl.training.critic_calibration import measure_calibration
+    from gentlerl.training.critic_calibration import measure_calibration, penalty_surprise_sources
     from gentlerl.training.evaluation import rollout_episodes
 
     if not (isinstance(episodes, int) and episodes >= 1):
@@ -147,6 +154,9 @@ def critic_calibration(
             eps = rollout_episodes(env, policies[mode], episodes, 100_000, exploration)
             calib = measure_calibration(learner.loss, rewards.transform, eps, cfg.learner.gamma)
             report["modes"][mode] = calib
+            sources = penalty_surprise_sources(rewards.transform, eps)
+            if sources is not None:
+                report.setdefault("penalty_surprise_sources", {})[mode] = sources
     finally:
         env.close()
     return report
@@ -172,6 +182,15 @@ def format_table(report: dict[str, Any]) -> str:
                     f"{s['bias']:>+9.3f} {s['mae']:>8.3f} {s['rel_error']:>8.2f} "
                     f"{s['outside_support']:>7.2f} {s['bootstrap']:>8.3f}"
                 )
+    for mode, x in report.get("penalty_surprise_sources", {}).items():
+        lines.append(
+            f"penalty surprise, {mode}: {x['contact_steps']} contact steps of {x['steps']}; "
+            f"r^sp {x['r_sp']:.3f} per contact step = curiosity a's*nll {x['curiosity']:.3f} + "
+            f"refund -a'r^f {x['refund']:.3f}; nll {x['nll']:.3f} = spread {x['spread']:.3f} + "
+            f"error {x['error']:.3f} (mean z^2 {x['z2']:.2f}); model variance aleatoric "
+            f"{x['aleatoric']:.3f}, epistemic {x['epistemic']:.3f}; r^f {x['penalty']:.3f} "
+            f"(sd {x['penalty_std']:.3f})"
+        )
     if report["not_saved"]:
         lines.insert(
             1,

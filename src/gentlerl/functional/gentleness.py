@@ -178,6 +178,26 @@ def gaussian_nll(
     return 0.5 * (_LOG_2PI + var.log() + (x - mean).pow(2) / var)
 
 
+def gaussian_nll_parts(
+    x: torch.Tensor, mean: torch.Tensor, var: torch.Tensor, min_var: float = 1e-6
+) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""The two terms of :func:`gaussian_nll`: ``(spread, error)``, elementwise.
+
+    .. math::
+        -\log \mathcal{N}(x \mid \mu, \sigma^2)
+        = \underbrace{\tfrac12 \log 2\pi\sigma^2}_{\text{spread}}
+        + \underbrace{\tfrac12 (x - \mu)^2 / \sigma^2}_{\text{error}}
+
+    A model that is wide but right pays in ``spread``; one that is sure but wrong, in ``error``
+    (``2 * error`` is the squared z-score, 1 on average for a calibrated Gaussian). Diagnostics
+    only; the rewards use :func:`gaussian_nll`.
+    """
+    if not min_var > 0:
+        raise ValueError(f"min_var must be > 0, got {min_var}")
+    var = _floor(var, min_var)
+    return 0.5 * (_LOG_2PI + var.log()), 0.5 * (x - mean).pow(2) / var
+
+
 def penalty_surprise(
     penalty: torch.Tensor, nll: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0
 ) -> torch.Tensor:

@@ -12,19 +12,22 @@ lag them by at most ``learner.target_update_period`` updates). A calibrated crit
 its realised returns inside the head's support :math:`[v_{min}, v_{max}]`.
 
 Used by the ``gentlerl calibration`` command (:mod:`gentlerl.apps.calibration`) and, on the
-deterministic evaluation episodes, by the training loop (``calibration/<head>/...`` scalars).
+deterministic evaluation episodes, by the training loop (``calibration/<head>/...`` scalars;
+``surprise_sources/...``: :func:`penalty_surprise_sources`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.envs.transforms import Transform
+from torchrl.envs.transforms import Compose, Transform
 
 from gentlerl import keys
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.transforms import PenaltySurprise
 
 
 def expected_value(logits: torch.Tensor, atoms: torch.Tensor) -> torch.Tensor:
@@ -160,9 +163,7 @@ def measure_calibration(
     if not episodes:
         raise ValueError("need at least one episode to measure calibration, got none")
     lengths = torch.tensor([e.shape[0] for e in episodes])
-    steps = transform(
-        torch.cat([e.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)) for e in episodes], 0)
-    )
+    steps = _rewarded_steps(transform, episodes)
     ends = lengths.cumsum(0) - 1
     done = torch.zeros(steps.shape[0], dtype=torch.bool)
     done[ends] = True
@@ -190,6 +191,47 @@ def measure_calibration(
     return report
 
 
+def _rewarded_steps(transform: Transform, episodes: Sequence[TensorDictBase]) -> TensorDictBase:
+    """The episodes' steps end to end (without the touch grids), with ``transform``'s rewards."""
+    return transform(
+        torch.cat([e.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)) for e in episodes], 0)
+    )
+
+
+def penalty_surprise_sources(
+    transform: Transform, episodes: Sequence[TensorDictBase]
+) -> dict[str, float] | None:
+    r"""Where the penalty surprise of the episodes' contact steps (:math:`r^f < 0`) comes from.
+
+    Means over those steps of :meth:`~gentlerl.transforms.PenaltySurprise.sources` under the
+    run's own transforms (``transform``, as in :func:`measure_calibration`), plus ``r_sp`` as the
+    run pays it (gate and scale included), ``nll`` = ``spread`` + ``error``, ``z2`` = 2 x
+    ``error`` (the squared z-score: ~1 for a calibrated penalty model, below 1 when it is too
+    wide, above when it is too sure), ``penalty_std``, ``contact_steps`` and ``steps``. A bonus
+    that does not fade shows here why: a wide model pays in ``spread``, a wrong one in ``error``.
+    ``None`` when ``transform`` has no penalty surprise; the means are NaN without contact.
+    """
+    members = transform if isinstance(transform, Compose) else [transform]
+    found = [t for t in members if isinstance(t, PenaltySurprise)]
+    if not found:
+        return None
+    surprise = found[0]
+    steps = _rewarded_steps(transform, episodes)
+    parts = surprise.sources(steps)
+    contact = parts["penalty"] < 0
+    parts |= {
+        "r_sp": steps.get(("next", surprise.out_keys[0])),
+        "nll": parts["spread"] + parts["error"],
+        "z2": 2 * parts["error"],
+    }
+    stats = {name: float(value[contact].mean()) for name, value in parts.items()}
+    return stats | {
+        "penalty_std": float(parts["penalty"][contact].std()) if contact.sum() > 1 else math.nan,
+        "contact_steps": int(contact.sum()),
+        "steps": int(contact.numel()),
+    }
+
+
 def calibration_scalars(report: dict[str, dict[str, dict[str, float]]]) -> dict[str, float]:
     """``calibration/<head>/{predicted,realised,bias}`` over every step of a
     :func:`measure_calibration` report, for a run's logs."""
@@ -198,3 +240,24 @@ def calibration_scalars(report: dict[str, dict[str, dict[str, float]]]) -> dict[
         for head, where in report.items()
         for stat in ("predicted", "realised", "bias")
     }
+
+
+#: What :func:`evaluation_scalars` logs of :func:`penalty_surprise_sources`.
+SOURCE_SCALARS = ("r_sp", "curiosity", "refund", "spread", "error", "z2", "aleatoric", "epistemic")
+
+
+def evaluation_scalars(
+    loss: MultiHeadD4PGLoss,
+    transform: Transform,
+    episodes: Sequence[TensorDictBase],
+    gamma: float,
+) -> dict[str, float]:
+    """What a run logs of its evaluation episodes: :func:`calibration_scalars` and, with penalty
+    surprise and contact, ``surprise_sources/<name>`` for :data:`SOURCE_SCALARS`
+    (:func:`penalty_surprise_sources`), so that a bonus that does not fade shows why over the run.
+    """
+    scalars = calibration_scalars(measure_calibration(loss, transform, episodes, gamma))
+    sources = penalty_surprise_sources(transform, episodes)
+    if sources is not None and sources["contact_steps"] > 0:
+        scalars |= {f"surprise_sources/{name}": sources[name] for name in SOURCE_SCALARS}
+    return scalars

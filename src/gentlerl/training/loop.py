@@ -42,7 +42,7 @@ from gentlerl.training.checkpoint import (
     save_checkpoint,
 )
 from gentlerl.training.config import TrainConfig, validate
-from gentlerl.training.critic_calibration import calibration_scalars, measure_calibration
+from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger
 from gentlerl.training.run_lock import RunLock
@@ -219,8 +219,7 @@ class Trainer:
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
         # The same episodes: each critic head's predicted Q against its realised return.
         loss, gamma = self.learner.loss, self.cfg.learner.gamma
-        calibration = measure_calibration(loss, self.rewards.transform, rollouts, gamma)
-        logger.log(calibration_scalars(calibration), frames)
+        logger.log(evaluation_scalars(loss, self.rewards.transform, rollouts, gamma), frames)
         logger.log_eval_episodes(frames, per_episode)
         self.eval_history.append({"frames": frames, **summary})
         self._keep_best({"frames": frames, **summary})

@@ -15,7 +15,13 @@ import torch
 from tensordict import TensorDictBase
 
 from gentlerl import keys
-from gentlerl.functional import gaussian_nll, mixture_moments, penalty_surprise
+from gentlerl.functional import (
+    acceptability,
+    gaussian_nll,
+    gaussian_nll_parts,
+    mixture_moments,
+    penalty_surprise,
+)
 from gentlerl.transforms.base import ModelRewardTransform
 
 if TYPE_CHECKING:  # the models are passed in; transforms import no model code
@@ -119,3 +125,33 @@ class PenaltySurprise(ModelRewardTransform):
             nll = nll.clamp_min(self.nll_floor)
         surprise = penalty_surprise(penalty, self.nll_scale * nll, *self.lam_prime)
         return {self.out_keys[0]: self._gate(surprise)}
+
+    def sources(self, tensordict: TensorDictBase) -> dict[str, torch.Tensor]:
+        r"""Where each step's :math:`r^{s_p}` comes from, under :attr:`params` (diagnostics).
+
+        Per step, ``[..., 1]``: ``penalty`` :math:`r^f`, ``a_prime`` :math:`a'`, ``curiosity``
+        :math:`a' s\,\mathrm{nll}` (the NLL floored as in :meth:`compute`) and ``refund``
+        :math:`-a' r^f` (on a contact step, :math:`r^{s_p}` = curiosity + refund before the gate),
+        the NLL's ``spread`` and ``error`` terms (:func:`~gentlerl.functional.gaussian_nll_parts`)
+        and the mixture's variance (eq. 5) split into ``aleatoric`` (the members' mean variance)
+        and ``epistemic`` (the variance of their means). Reads ``("next", penalty_key)``.
+        """
+        penalty = tensordict.get(("next", self.penalty_key))
+        mean, var = self.predict(tensordict)
+        mu, sigma2 = mixture_moments(mean, var, dim=0)
+        spread, error = gaussian_nll_parts(penalty, mu, sigma2)
+        nll = spread + error
+        if self.nll_floor is not None:
+            nll = nll.clamp_min(self.nll_floor)
+        weight = acceptability(-penalty, *self.lam_prime)
+        aleatoric = var.mean(0)
+        return {
+            "penalty": penalty,
+            "a_prime": weight,
+            "curiosity": weight * self.nll_scale * nll,
+            "refund": -weight * penalty,
+            "spread": spread,
+            "error": error,
+            "aleatoric": aleatoric,
+            "epistemic": sigma2 - aleatoric,
+        }
