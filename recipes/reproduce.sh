@@ -15,19 +15,21 @@
 #     30k env frames, 5k of them random, intrinsic rewards on after 1k model updates (~9k frames).
 #   --scale paper (recipes/sweeps/): the paper's grid, lambda'_2 in 3 values each: 85 runs of 500k
 #     frames at the paper's hyper-parameters; about 1 h per run on a 2-core CPU, plan for a cluster.
-# --method changes (default): the CPU-scale changes to the method (NLL floor 0, penalty support
-# capped at 0, non-episodic intrinsic heads, dynamics surprise x 0.002, dense heads' supports
-# spanning the discounted horizon, r^sp recomputed when sampled); --method published: the method
-# as the paper gives it (gentleness.surprise_nll_floor=null network.bounded_support=false
+# --method changes (default): the CPU-scale changes to the method (penalty support capped at 0,
+# non-episodic intrinsic heads, dynamics surprise x 0.002, dense heads' supports spanning the
+# discounted horizon, r^sp recomputed when sampled; no NLL floor since the fifth amendment, as
+# the paper); --method published: the method as the paper gives it
+# (gentleness.surprise_nll_floor=null network.bounded_support=false
 # learner.episodic_intrinsic=true gentleness.dynamics_surprise_scale=1
 # gentleness.recompute_surprise=false, and the paper's support (-100, 100) for every head:
 # network.v_min=-100 network.v_max=100 network.dense_reward_bound=null). Both are needed for the
-# two rows of each claim. The ablation
-# methods switch off one change at a time from `changes`: --method no-nll-floor
-# (gentleness.surprise_nll_floor=null), no-support-cap (network.bounded_support=false), episodic
-# (learner.episodic_intrinsic=true), unscaled-rs (gentleness.dynamics_surprise_scale=1),
-# shared-support (network.dense_reward_bound=null: [v_min, v_max] = [-10, 10] for every head),
-# no-recompute (gentleness.recompute_surprise=false: r^sp as stored at collection).
+# two rows of each claim. The ablation methods switch off one change at a time from `changes`:
+# no-support-cap (network.bounded_support=false), episodic (learner.episodic_intrinsic=true),
+# unscaled-rs (gentleness.dynamics_surprise_scale=1), shared-support
+# (network.dense_reward_bound=null: [v_min, v_max] = [-10, 10] for every head), no-recompute
+# (gentleness.recompute_surprise=false: r^sp as stored at collection). no-nll-floor
+# (gentleness.surprise_nll_floor=null) was the third amendment's ablation of the floor at 0 and is
+# the same as `changes` today; nll-floor (gentleness.surprise_nll_floor=0) puts that floor back.
 #
 # Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/REPRODUCTION.md (measured there).
 #
@@ -77,10 +79,11 @@ case "$method" in
   shared-support) extra+=(--set network.dense_reward_bound=null) ;;
   no-recompute) extra+=(--set gentleness.recompute_surprise=false) ;;
   no-nll-floor) extra+=(--set gentleness.surprise_nll_floor=null) ;;
+  nll-floor) extra+=(--set gentleness.surprise_nll_floor=0) ;;
   no-support-cap) extra+=(--set network.bounded_support=false) ;;
   episodic) extra+=(--set learner.episodic_intrinsic=true) ;;
   unscaled-rs) extra+=(--set gentleness.dynamics_surprise_scale=1) ;;
-  *) echo "--method must be changes, published, no-nll-floor, no-support-cap, episodic," \
+  *) echo "--method must be changes, published, no-nll-floor, nll-floor, no-support-cap, episodic," \
        "unscaled-rs, shared-support or no-recompute, got $method" >&2; exit 2 ;;
 esac
 for sweep in ${sweeps_run//,/ }; do

@@ -9,7 +9,8 @@ import pytest
 import torch
 from torchrl.envs import TransformedEnv
 
-from gentlerl import cli
+from gentlerl import cli, keys
+from gentlerl.apps.calibration import _sources_line
 from gentlerl.apps.calibration import main as calibration_main
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
@@ -26,6 +27,7 @@ from gentlerl.training.critic_calibration import (
 from gentlerl.training.evaluation import rollout_episodes
 from gentlerl.transforms import ImpactPenalty
 from tests.test_training_loop import read_scalar, tiny_config
+from tests.test_transforms import _pressing_rollout, make_reward_transforms
 from tests.toy_env import ToyHandEnv
 
 F, T = False, True
@@ -219,14 +221,26 @@ def test_calibration_command_prints_every_head_and_mode(hand_run, tmp_path, caps
         assert x["r_sp"] == pytest.approx(x["curiosity"] + x["refund"], rel=1e-4)
         assert x["nll"] == pytest.approx(x["spread"] + x["error"], rel=1e-5)
         assert x["z2"] == pytest.approx(2 * x["error"]) and x["refund"] > 0
+        assert x["z2_all_steps"] > 0 and x["spread_all_steps"] is not None
         assert f"penalty surprise, {mode}: {x['contact_steps']} contact steps" in text
     assert set(report["penalty_surprise_sources"]) == {"deterministic", "noisy"}
 
 
-def test_penalty_surprise_sources_need_a_penalty_surprise():
+def test_penalty_surprise_sources_need_a_penalty_surprise_and_contact():
     env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
     episodes = rollout_episodes(env, None, 1, 5)
     assert penalty_surprise_sources(ImpactPenalty(), episodes) is None
+    # Steps without contact: nothing to decompose, and None (not NaN) where a mean has no steps.
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3)
+    stack.step(0)
+    steps = _pressing_rollout(ToyHandEnv())
+    quiet = steps[(stack.transform(steps.clone())["next", keys.PENALTY] == 0).reshape(-1)]
+    stats = penalty_surprise_sources(stack.transform, [quiet])
+    assert stats["contact_steps"] == 0 and stats["steps"] == quiet.shape[0] > 0
+    assert stats["r_sp"] is None and stats["penalty_std"] is None
+    assert math.isfinite(stats["z2_all_steps"])  # every step still has a z-score
+    json.dumps(stats, allow_nan=False)
+    assert "no contact" in _sources_line("noisy", stats, True)
 
 
 def test_calibration_command_reproduces_the_runs_logged_scalars(hand_run):

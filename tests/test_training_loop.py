@@ -116,8 +116,8 @@ def test_same_seed_same_logged_scalars_with_the_hand_env(tmp_path):
     calibration = [
         name for name in runs["first"] if name.startswith(("calibration/", "surprise_sources/"))
     ]
-    # predicted, realised, bias of each critic head; where r^sp comes from (8 numbers)
-    assert len(calibration) == 3 * 3 + 8
+    # predicted, realised, bias of each critic head; where r^sp comes from (9 numbers)
+    assert len(calibration) == 3 * 3 + 9
     # 24 + train/penalty_surprise_per_contact_step (recomputed r^sp at sampling)
     assert len(runs["first"]) - len(calibration) == 25, sorted(runs["first"])
     impacts = [value for _, value in runs["first"]["episode/max_impact"]]

@@ -293,27 +293,31 @@ def test_penalty_surprise_nll_floor_keeps_the_surprise_a_bonus():
 
 
 def test_penalty_surprise_sources_add_up_to_the_paid_reward():
-    # curiosity a' s nll + refund -a' r^f is r^sp on each contact step (scale 0.5, floor 0);
-    # the NLL's two terms are gaussian_nll's and the variance splits as in eq. 5.
+    # curiosity a' s nll + refund -a' r^f is r^sp on each contact step (scale 0.5, and a floor of
+    # 5 nats that binds: these NLLs are ~2); the NLL's two terms are gaussian_nll's, the variance
+    # splits as in eq. 5, and before the switch both parts are 0 as the reward is.
     stack = make_reward_transforms(
         "r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3, surprise_scale=0.5,
-        surprise_nll_floor=0.0,
+        surprise_nll_floor=5.0,
     )  # fmt: skip
-    stack.step(0)
     surprise = stack.transform[1]
+    closed = surprise.sources(stack.transform(_pressing_rollout(ToyHandEnv())))
+    assert (closed["curiosity"] == 0).all() and (closed["refund"] == 0).all()
+    stack.step(0)
     batch = stack.transform(_pressing_rollout(ToyHandEnv()))
     parts = surprise.sources(batch)
     hit = parts["penalty"] < 0
-    assert hit.any() and (parts["penalty"] == batch["next", keys.PENALTY]).all()
+    assert hit.any() and (parts["spread"] + parts["error"] < 5.0)[hit].all()  # the floor binds
+    torch.testing.assert_close(parts["curiosity"][hit], (parts["a_prime"] * 0.5 * 5.0)[hit])
     rsp = batch["next", keys.PENALTY_SURPRISE]
     torch.testing.assert_close((parts["curiosity"] + parts["refund"])[hit], rsp[hit])
     mean, var = stack.losses["penalty"].predict_target(batch)
     mu, s2 = mixture_moments(mean, var)
-    torch.testing.assert_close(
-        parts["spread"] + parts["error"], gaussian_nll(parts["penalty"], mu, s2)
-    )
+    nll = gaussian_nll(batch["next", keys.PENALTY], mu, s2)
+    torch.testing.assert_close(parts["spread"] + parts["error"], nll)
     torch.testing.assert_close(parts["aleatoric"] + parts["epistemic"], s2)
-    assert (parts["epistemic"] >= -1e-6).all() and (parts["a_prime"] <= 1).all()
+    with pytest.raises(ValueError, match="penalty"):
+        surprise.sources(batch.exclude(("next", keys.PENALTY)))
 
 
 _MODEL_REWARDS = {

@@ -183,14 +183,7 @@ def format_table(report: dict[str, Any]) -> str:
                     f"{s['outside_support']:>7.2f} {s['bootstrap']:>8.3f}"
                 )
     for mode, x in report.get("penalty_surprise_sources", {}).items():
-        lines.append(
-            f"penalty surprise, {mode}: {x['contact_steps']} contact steps of {x['steps']}; "
-            f"r^sp {x['r_sp']:.3f} per contact step = curiosity a's*nll {x['curiosity']:.3f} + "
-            f"refund -a'r^f {x['refund']:.3f}; nll {x['nll']:.3f} = spread {x['spread']:.3f} + "
-            f"error {x['error']:.3f} (mean z^2 {x['z2']:.2f}); model variance aleatoric "
-            f"{x['aleatoric']:.3f}, epistemic {x['epistemic']:.3f}; r^f {x['penalty']:.3f} "
-            f"(sd {x['penalty_std']:.3f})"
-        )
+        lines.append(_sources_line(mode, x, report["intrinsic_on"]))
     if report["not_saved"]:
         lines.insert(
             1,
@@ -199,6 +192,22 @@ def format_table(report: dict[str, Any]) -> str:
             "trained on",
         )
     return "\n".join(lines)
+
+
+def _sources_line(mode: str, x: dict[str, Any], intrinsic_on: bool) -> str:
+    """One line of :func:`format_table`: where the penalty surprise of contact steps comes from."""
+    head = f"penalty surprise, {mode}: {x['contact_steps']} contact steps of {x['steps']}"
+    if not x["contact_steps"]:
+        return f"{head}; no contact, nothing to decompose"
+    sd = "n/a" if x["penalty_std"] is None else f"{x['penalty_std']:.3f}"
+    return (
+        f"{head}; r^sp {x['r_sp']:.3f} per contact step = curiosity a's*nll "
+        f"{x['curiosity']:.3f} + refund -a'r^f {x['refund']:.3f}"
+        f"{'' if intrinsic_on else ' (intrinsic rewards off: 0)'}; nll {x['nll']:.3f} = spread "
+        f"{x['spread']:.3f} + error {x['error']:.3f} (mean z^2 {x['z2']:.2f}; over all steps "
+        f"{x['z2_all_steps']:.2f}); model variance aleatoric {x['aleatoric']:.3f}, epistemic "
+        f"{x['epistemic']:.3f}; r^f {x['penalty']:.3f} (sd {sd})"
+    )
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") -> dict[str, Any]:

@@ -18,7 +18,6 @@ deterministic evaluation episodes, by the training loop (``calibration/<head>/..
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import torch
@@ -200,16 +199,19 @@ def _rewarded_steps(transform: Transform, episodes: Sequence[TensorDictBase]) ->
 
 def penalty_surprise_sources(
     transform: Transform, episodes: Sequence[TensorDictBase]
-) -> dict[str, float] | None:
+) -> dict[str, float | int | None] | None:
     r"""Where the penalty surprise of the episodes' contact steps (:math:`r^f < 0`) comes from.
 
     Means over those steps of :meth:`~gentlerl.transforms.PenaltySurprise.sources` under the
-    run's own transforms (``transform``, as in :func:`measure_calibration`), plus ``r_sp`` as the
-    run pays it (gate and scale included), ``nll`` = ``spread`` + ``error``, ``z2`` = 2 x
-    ``error`` (the squared z-score: ~1 for a calibrated penalty model, below 1 when it is too
-    wide, above when it is too sure), ``penalty_std``, ``contact_steps`` and ``steps``. A bonus
-    that does not fade shows here why: a wide model pays in ``spread``, a wrong one in ``error``.
-    ``None`` when ``transform`` has no penalty surprise; the means are NaN without contact.
+    run's transforms and today's target model (``transform``, as in
+    :func:`measure_calibration`), plus ``r_sp`` as that model scores them (gate and scale
+    included; a run with ``recompute_surprise=false`` was paid the values of older models),
+    ``nll`` = ``spread`` + ``error`` (unfloored), ``z2`` = 2 x ``error`` (the squared z-score),
+    ``penalty_std``, ``contact_steps`` and ``steps``. ``z2_all_steps`` and ``spread_all_steps``
+    average over every step, contact or not, as the model is trained: there a calibrated model
+    has ``z2`` ~1 (below: too wide; above: too sure); over contact steps alone, selected by
+    their outcome, the tail pushes ``z2`` up. ``None`` when ``transform`` has no penalty
+    surprise; a mean over no step is ``None``.
     """
     members = transform if isinstance(transform, Compose) else [transform]
     found = [t for t in members if isinstance(t, PenaltySurprise)]
@@ -224,12 +226,21 @@ def penalty_surprise_sources(
         "nll": parts["spread"] + parts["error"],
         "z2": 2 * parts["error"],
     }
-    stats = {name: float(value[contact].mean()) for name, value in parts.items()}
+    stats: dict[str, float | int | None] = {
+        name: _mean(value[contact]) for name, value in parts.items()
+    }
     return stats | {
-        "penalty_std": float(parts["penalty"][contact].std()) if contact.sum() > 1 else math.nan,
+        "z2_all_steps": _mean(parts["z2"]),
+        "spread_all_steps": _mean(parts["spread"]),
+        "penalty_std": float(parts["penalty"][contact].std()) if contact.sum() > 1 else None,
         "contact_steps": int(contact.sum()),
         "steps": int(contact.numel()),
     }
+
+
+def _mean(values: torch.Tensor) -> float | None:
+    """The mean as a float, ``None`` for no values (JSON has no NaN)."""
+    return float(values.mean()) if values.numel() else None
 
 
 def calibration_scalars(report: dict[str, dict[str, dict[str, float]]]) -> dict[str, float]:
@@ -243,7 +254,10 @@ def calibration_scalars(report: dict[str, dict[str, dict[str, float]]]) -> dict[
 
 
 #: What :func:`evaluation_scalars` logs of :func:`penalty_surprise_sources`.
-SOURCE_SCALARS = ("r_sp", "curiosity", "refund", "spread", "error", "z2", "aleatoric", "epistemic")
+SOURCE_SCALARS = (
+    "r_sp", "curiosity", "refund", "spread", "error", "z2", "z2_all_steps", "aleatoric",
+    "epistemic",
+)  # fmt: skip
 
 
 def evaluation_scalars(

@@ -131,12 +131,13 @@ class PenaltySurprise(ModelRewardTransform):
 
         Per step, ``[..., 1]``: ``penalty`` :math:`r^f`, ``a_prime`` :math:`a'`, ``curiosity``
         :math:`a' s\,\mathrm{nll}` (the NLL floored as in :meth:`compute`) and ``refund``
-        :math:`-a' r^f` (on a contact step, :math:`r^{s_p}` = curiosity + refund before the gate),
-        the NLL's ``spread`` and ``error`` terms (:func:`~gentlerl.functional.gaussian_nll_parts`)
-        and the mixture's variance (eq. 5) split into ``aleatoric`` (the members' mean variance)
-        and ``epistemic`` (the variance of their means). Reads ``("next", penalty_key)``.
+        :math:`-a' r^f`, both gated as the reward is (0 before the switch), so that on a contact
+        step :math:`r^{s_p}` = curiosity + refund; the (unfloored) NLL's ``spread`` and ``error``
+        terms (:func:`~gentlerl.functional.gaussian_nll_parts`) and the mixture's variance (eq. 5)
+        split into ``aleatoric`` (the members' mean variance) and ``epistemic`` (the variance of
+        their means). Reads ``("next", penalty_key)``.
         """
-        penalty = tensordict.get(("next", self.penalty_key))
+        penalty = self.read(tensordict, ("next", self.penalty_key))
         mean, var = self.predict(tensordict)
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         spread, error = gaussian_nll_parts(penalty, mu, sigma2)
@@ -144,14 +145,13 @@ class PenaltySurprise(ModelRewardTransform):
         if self.nll_floor is not None:
             nll = nll.clamp_min(self.nll_floor)
         weight = acceptability(-penalty, *self.lam_prime)
-        aleatoric = var.mean(0)
         return {
             "penalty": penalty,
             "a_prime": weight,
-            "curiosity": weight * self.nll_scale * nll,
-            "refund": -weight * penalty,
+            "curiosity": self._gate(weight * self.nll_scale * nll),
+            "refund": self._gate(-weight * penalty),
             "spread": spread,
             "error": error,
-            "aleatoric": aleatoric,
-            "epistemic": sigma2 - aleatoric,
+            "aleatoric": var.mean(0),
+            "epistemic": mean.var(0, unbiased=False),
         }
