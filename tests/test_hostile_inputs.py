@@ -596,9 +596,15 @@ def test_an_interrupted_sweep_kills_its_trainers_process_groups(tmp_path):
             time.sleep(0.05)
         os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C: KeyboardInterrupt in the main thread
 
-    threading.Thread(target=ctrl_c_once_the_trainer_runs, daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        run_grid(runs, workers=1)
+    # Ctrl-C raises KeyboardInterrupt even where pytest inherited SIGINT ignored (a shell starts
+    # background jobs so, and Python then keeps it ignored).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=ctrl_c_once_the_trainer_runs, daemon=True).start()
+        with pytest.raises(KeyboardInterrupt):
+            run_grid(runs, workers=1)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     grandchild = int(pids.read_text())
     for _ in range(100):
         if not _alive(grandchild):
