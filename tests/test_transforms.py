@@ -320,6 +320,32 @@ def test_penalty_surprise_sources_add_up_to_the_paid_reward():
         surprise.sources(batch.exclude(("next", keys.PENALTY)))
 
 
+def test_penalty_surprise_reads_the_model_on_penalty_rows_only(monkeypatch):
+    # Eq. 8 on a [4, 6] batch where some steps press: the values are the equation's on every row
+    # (computed here on the whole batch), and the model saw the pressing rows only.
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3)
+    stack.step(0)
+    impact, surprise = stack.transform[0], stack.transform[1]
+    touch = torch.rand(24, 5, 3) * 2.0
+    touch[::2] = 0.0  # no force at the even steps
+    batch = impact(_transitions(torch.zeros_like(touch), touch)).reshape(4, 6)
+    penalty = batch["next", keys.PENALTY]
+    assert 0 < int((penalty < 0).sum()) < 24
+    seen = []
+    predict = surprise.predict
+    monkeypatch.setattr(surprise, "predict", lambda td: seen.append(td.numel()) or predict(td))
+    rsp = surprise(batch)["next", keys.PENALTY_SURPRISE]
+    assert rsp.shape == (4, 6, 1) and seen == [int((penalty < 0).sum())]
+    mean, var = stack.losses["penalty"].predict_target(batch)
+    mu, s2 = mixture_moments(mean, var)
+    a = torch.sigmoid(2.0 * (2.0 + penalty))  # acceptability of |r^f|, lambda' = [2, 2]
+    expected = torch.where(penalty < 0, a * (gaussian_nll(penalty, mu, s2) - penalty), 0.0)
+    torch.testing.assert_close(rsp, expected)
+    seen.clear()
+    quiet = impact(_transitions(torch.zeros_like(touch), torch.zeros_like(touch)))
+    assert (surprise(quiet)["next", keys.PENALTY_SURPRISE] == 0).all() and seen == []
+
+
 _MODEL_REWARDS = {
     "r+rf+rs": keys.DYNAMICS_SURPRISE,
     "r+rf+rsp": keys.PENALTY_SURPRISE,

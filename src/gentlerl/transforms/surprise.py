@@ -72,6 +72,7 @@ class PenaltySurprise(ModelRewardTransform):
         \text{ if } r^f_t < 0, \text{ else } 0.
 
     Reads ``("next", "penalty")``: put :class:`~gentlerl.transforms.ImpactPenalty` before it.
+    The model is evaluated on the rows with a penalty only (the others are 0 by the equation).
 
     Args:
         model: the penalty ensemble.
@@ -118,13 +119,28 @@ class PenaltySurprise(ModelRewardTransform):
             raise KeyError(
                 f"PenaltySurprise needs ('next', {self.penalty_key!r}): append ImpactPenalty first"
             )
-        mean, var = self.predict(tensordict)
-        mu, sigma2 = mixture_moments(mean, var, dim=0)
-        nll = gaussian_nll(penalty, mu, sigma2)
-        if self.nll_floor is not None:
-            nll = nll.clamp_min(self.nll_floor)
-        surprise = penalty_surprise(penalty, self.nll_scale * nll, *self.lam_prime)
-        return {self.out_keys[0]: self._gate(surprise)}
+        # Eq. 8 is 0 wherever r^f >= 0, so the model reads only the other rows: contacts (a
+        # minority of a training batch), and rows whose penalty or model input is not finite (so
+        # that NaN still reaches the reward). A diverged model shows on contact rows and in its
+        # own training loss, which the loop checks.
+        inputs = [self.read(tensordict, k) for k in (self.model.obs_key, self.model.action_key)]
+        flat = penalty.reshape(-1)
+        rows = ~(flat >= 0)
+        for x in inputs:
+            rows |= ~torch.isfinite(x.reshape(flat.shape[0], -1)).all(-1)
+        surprise = torch.zeros_like(flat)
+        index = rows.nonzero().squeeze(-1)
+        if index.numel():
+            model_in = tensordict.select(self.model.obs_key, self.model.action_key)
+            mean, var = self.predict(model_in.reshape(-1)[index])
+            mu, sigma2 = mixture_moments(mean, var, dim=0)
+            hit = flat[index].unsqueeze(-1)
+            nll = gaussian_nll(hit, mu, sigma2)
+            if self.nll_floor is not None:
+                nll = nll.clamp_min(self.nll_floor)
+            values = penalty_surprise(hit, self.nll_scale * nll, *self.lam_prime)
+            surprise[index] = values.squeeze(-1)
+        return {self.out_keys[0]: self._gate(surprise.reshape(penalty.shape))}
 
     def sources(self, tensordict: TensorDictBase) -> dict[str, torch.Tensor]:
         r"""Where each step's :math:`r^{s_p}` comes from, under :attr:`params` (diagnostics).
