@@ -68,6 +68,8 @@ case "$scale" in
   paper) sweeps=recipes/sweeps extra=() ;;
   *) echo "--scale must be cpu or paper, got $scale" >&2; exit 2 ;;
 esac
+# The registered runs collected with one hand per collector (the default is 4 since 2026-12-02).
+extra+=(--set collector.num_envs=1)
 case "$method" in
   changes) ;;
   published) extra+=(--set gentleness.surprise_nll_floor=null --set network.bounded_support=false

@@ -152,8 +152,8 @@ def _compose(overrides):
 
 
 def test_num_envs_needs_a_batching_env_factory():
-    assert make_config().collector.num_envs == 1
-    collector = make_config(collector={"num_envs": None}).collector
+    collector = make_config().collector
+    assert collector.num_envs is None  # the default: automatic
     # Automatic (null): 4 hands for gentlerl's hand env, 1 for a factory that cannot batch.
     assert collection_env_factory(collector, ToyHandEnv) is ToyHandEnv
     hand = default_env_factory(make_config())

@@ -60,10 +60,10 @@ class EnvConfig:
         return "touch" if self.name is None else "force"
 
 
-#: Hands per collector env when ``collector.num_envs`` is null and the env factory batches: 4 hands
-#: on the 2 physics threads of a 2-core machine (benchmarks/RESULTS.md, "train_speed"). Not the
-#: default: the default recipe with 4 hands did not learn touch in 30k frames on 2 seeds, where one
-#: hand learns it by 20k (README, "Measured numbers").
+#: Hands per collector env when ``collector.num_envs`` is null (the default) and the env factory
+#: batches: 4 hands share each step's TorchRL and policy overhead (1.98x one hand's collector
+#: frames/s, the default recipe 1.18x faster end to end with the same evaluations;
+#: benchmarks/RESULTS.md).
 AUTO_NUM_ENVS = 4
 
 
@@ -93,7 +93,7 @@ class CollectorConfig:
         resumable=True,
     )  # fmt: skip
     num_envs: int | None = setting(
-        1,
+        None,
         "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
         f"{AUTO_NUM_ENVS} where the env factory batches (gentlerl's hand env), else 1",
         bounds=">= 1",
