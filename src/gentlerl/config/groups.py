@@ -61,9 +61,9 @@ class EnvConfig:
 
 
 #: Hands per collector env when ``collector.num_envs`` is null (the default) and the env factory
-#: batches: 4 hands share each step's TorchRL and policy overhead (1.98x one hand's collector
-#: frames/s, the default recipe 1.18x faster end to end with the same evaluations;
-#: benchmarks/RESULTS.md).
+#: batches: 4 hands share each step's TorchRL and policy overhead (1.35x one hand's collector
+#: frames/s on a quiet core, 1.98x at load 5-7; the default recipe 1.18x faster end to end with
+#: the same evaluations; benchmarks/RESULTS.md).
 AUTO_NUM_ENVS = 4
 
 
