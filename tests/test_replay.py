@@ -149,3 +149,33 @@ def test_nstep_writer_keeps_each_env_row_apart_and_resumes_with_a_cut():
     assert first["next", "observation"][:3].flatten().tolist() == [8.0, 8.0, 8.0]
     with pytest.raises(ValueError, match="without transforms"):
         NStepWriter(make_replay_buffer(100, 4), 3, 0.5, keys_)
+
+
+def test_the_torch_sampler_logs_no_cpp_extension_warning():
+    """TorchRL's sampler warns that its C++ trees did not load; ours does not use them.
+
+    The filter is scoped to the constructor, so TorchRL's logger is left as it was.
+    """
+    import logging
+
+    from torchrl._extension import EXTENSION_WARNING
+    from torchrl._utils import logger as torchrl_logger
+
+    from gentlerl.data.prioritized import TorchPrioritizedSampler
+
+    records: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            records.append(record.getMessage())
+
+    handler = Keep(level=logging.DEBUG)
+    torchrl_logger.addHandler(handler)
+    try:
+        sampler = TorchPrioritizedSampler(16, alpha=0.6, beta=0.4)
+        torchrl_logger.warning(EXTENSION_WARNING)  # outside the constructor it still gets through
+    finally:
+        torchrl_logger.removeHandler(handler)
+    assert records == [EXTENSION_WARNING]
+    assert torchrl_logger.filters == []
+    assert sampler._alpha == 0.6 and sampler._beta == 0.4  # TorchRL's arguments, unchanged

@@ -7,14 +7,25 @@ torch 2.13.0 CPU wheel (undefined symbol), and TorchRL then refuses to build a
 trees for :class:`FlatPriorityTree`: a flat tensor whose range sums/minima are vectorised
 reductions and whose prefix-sum search is ``cumsum`` + ``searchsorted``. Each sample costs
 O(capacity) in C-speed torch ops (about 1 ms for 1M entries), no python loop.
+
+No torchrl wheel on the package registry loads against that torch build (each 0.12.0–0.14.1
+wheel misses torch C++ symbols: 0.14.x was built against torch 2.14, 0.12–0.13 against older
+releases), so TorchRL's ``Failed to import torchrl C++ binaries`` warning, which its sampler logs
+at construction, says nothing a user of this sampler can act on: it is dropped here, and only
+here (see :func:`_without_extension_warning`).
 """
 
 from __future__ import annotations
 
-from typing import Literal
+import contextlib
+import logging
+from collections.abc import Iterator
+from typing import Any, Literal
 
 import numpy as np
 import torch
+from torchrl._extension import EXTENSION_WARNING
+from torchrl._utils import logger as torchrl_logger
 from torchrl.data import PrioritizedSampler
 
 
@@ -54,8 +65,38 @@ class FlatPriorityTree:
         return torch.searchsorted(cumulative, mass, right=True)
 
 
+class _DropRecord(logging.Filter):
+    """Drops the log records whose message is exactly ``message``."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__()
+        self.message = message
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.getMessage() != self.message
+
+
+@contextlib.contextmanager
+def _without_extension_warning() -> Iterator[None]:
+    """TorchRL's logger without its C++-extension warning, for the ``with`` block only."""
+    drop = _DropRecord(EXTENSION_WARNING)
+    torchrl_logger.addFilter(drop)
+    try:
+        yield
+    finally:
+        torchrl_logger.removeFilter(drop)
+
+
 class TorchPrioritizedSampler(PrioritizedSampler):
-    """TorchRL's ``PrioritizedSampler`` (Schaul et al. 2016) backed by :class:`FlatPriorityTree`."""
+    """TorchRL's ``PrioritizedSampler`` (Schaul et al. 2016) backed by :class:`FlatPriorityTree`.
+
+    Takes TorchRL's arguments (``max_capacity``, ``alpha``, ``beta``, ``eps``, ...) unchanged.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        # TorchRL warns that its C++ trees are missing; this class does not use them.
+        with _without_extension_warning():
+            super().__init__(*args, **kwargs)
 
     def _init(self) -> None:
         if self._device is not None and self._device.type != "cpu":
