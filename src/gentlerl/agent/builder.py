@@ -14,11 +14,12 @@ import torch
 from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
-from torchrl.envs import CatTensors, EnvBase
+from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
 from gentlerl.agent.rewards import IntrinsicRewards
+from gentlerl.agent.specs import env_feature_shapes
 from gentlerl.agent.variants import (
     discounted_horizon,
     head_supports,
@@ -64,16 +65,6 @@ def episode_steps(env: EnvBase, default: int = 1000) -> int:
     return default if limit is None else int(limit)
 
 
-def observation_sources(env: EnvBase) -> list[str]:
-    """The entries a ``CatTensors`` of ``env`` concatenates into ``observation`` (as
-    :func:`gentlerl.envs.external.adapt_env` appends it), else ``[]``."""
-    transform = getattr(env, "transform", None)
-    for t in transform if transform is not None else ():
-        if isinstance(t, CatTensors) and list(t.out_keys) == [keys.OBSERVATION]:
-            return [str(k) for k in t.in_keys]
-    return []
-
-
 class AgentBuilder:
     """Makes the agent of ``cfg`` for ``env``, whose specs give every size.
 
@@ -87,15 +78,9 @@ class AgentBuilder:
 
     def __init__(self, cfg: AgentConfig, env: EnvBase) -> None:
         self.cfg = cfg
-        spec = env.observation_spec
-        batch_dims = len(env.batch_size)
-        self.obs_dim = spec[keys.OBSERVATION].shape[-1]
+        self.obs_dim = env.observation_spec[keys.OBSERVATION].shape[-1]
         self.action_dim = env.action_spec.shape[-1]
-        # The hand's feature groups; an external env's: the entries of its observation.
-        features = [k for k in keys.DYNAMICS_FEATURES if k in spec.keys()]
-        if keys.JOINT_POS not in features:
-            features = observation_sources(env) or features
-        self.feature_shapes = {k: tuple(spec[k].shape[batch_dims:]) for k in features}
+        self.feature_shapes = env_feature_shapes(env)
         self.reward_keys = reward_keys(cfg.variant)
         #: Steps per episode (the env's ``time_limit``, else 1000): the dense heads' horizon.
         self.horizon = episode_steps(env)

@@ -3,6 +3,7 @@
 The models learn from 1-step transitions (s_t, a_t, s_{t+1}, r^f_t) in their own uniform buffer;
 every model update is followed by the paper's schedule: hard target copies every
 ``target_period`` updates, and the curiosity rewards switched on after ``reward_delay`` updates.
+Both periods count :meth:`IntrinsicRewards.update` calls (one gradient step of each model).
 """
 
 from __future__ import annotations
@@ -14,17 +15,25 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
-from torchrl.envs.transforms import Compose
 from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
+from gentlerl.agent.chain import RewardChain
+from gentlerl.agent.specs import env_feature_shapes
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
+from gentlerl.config import GentlenessConfig
 from gentlerl.data import WINDOW, make_model_buffer, nstep_return
 from gentlerl.objectives import EnsembleModelLoss
-from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
+from gentlerl.transforms import (
+    FreshRewards,
+    ImpactPenalty,
+    ModelRewardTransform,
+    PenaltySurprise,
+    SumRewards,
+)
 
 if TYPE_CHECKING:
-    from gentlerl.config import GentlenessConfig
+    from torchrl.envs import EnvBase
 
 
 class IntrinsicRewards:
@@ -41,7 +50,13 @@ class IntrinsicRewards:
     ``observation``), ``action`` and a force entry ``force_key`` shaped
     ``[..., n_sites, n_channels]`` (the hand's ``touch``, ``[5, 3]``); ``feature_shapes`` names the
     entries the dynamics model predicts (used by the variants with dynamics surprise only).
-    ``transform.check_keys`` says which of them a tensordict lacks.
+    ``transform.check_keys`` says which of them a tensordict lacks. :meth:`from_env` reads every
+    size from an env's specs; ``device`` is where the models and their buffer live.
+
+    With ``settings.recompute_surprise`` (the default), penalty surprise must be scored again
+    when sampled: gentlerl's loop calls :meth:`refresh`; any other pipeline appends
+    :meth:`sampling_transform` to its replay buffer. :meth:`update` raises once the rewards are
+    on if neither ever ran, rather than training on stale curiosity without a word.
     """
 
     def __init__(
@@ -55,11 +70,23 @@ class IntrinsicRewards:
         seed: int = 0,
         force_key: str = keys.TOUCH,
         obs_key: str = keys.OBSERVATION,
+        device: torch.device | str | None = None,
     ) -> None:
         self.reward_keys = reward_keys(variant)
         self.settings = settings
         self.obs_key, self.force_key = obs_key, force_key
+        self.device = torch.device("cpu" if device is None else device)
+        #: Model updates so far (:meth:`update` counts them; the schedule reads it).
+        self.num_updates = 0
+        self._sampling: list[FreshRewards] = []
+        self._refreshed = False
         ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key, force_key)
+        with self.device:
+            self._build(ing)
+
+    def _build(self, ing: Ingredients) -> None:
+        """The transforms, losses, target updaters, optimisers and buffer of the variant."""
+        settings, force_key = ing.settings, ing.force_key
         # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
         transforms: list = [ImpactPenalty(settings.lam, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}
@@ -78,14 +105,84 @@ class IntrinsicRewards:
                 self._updaters[component.model] = HardUpdate(
                     part.loss, value_network_update_interval=interval
                 )
-        self.transform = _Rewards(*transforms, obs_key=obs_key, force_key=force_key)
+        self.transform = RewardChain(*transforms, obs_key=ing.obs_key, force_key=force_key)
         self.optimizers = {
             # fused: one kernel per step instead of ~10 per parameter tensor
             name: torch.optim.Adam(loss.parameters(), lr=settings.lr_model, fused=True)
             for name, loss in self.losses.items()
         }
         self.buffer: ReplayBuffer | None = (
-            make_model_buffer(settings.model_buffer_size) if self.losses else None
+            make_model_buffer(settings.model_buffer_size, device=self.device)
+            if self.losses
+            else None
+        )
+
+    @classmethod
+    def from_env(
+        cls,
+        env: EnvBase,
+        variant: str,
+        settings: GentlenessConfig | None = None,
+        *,
+        force_key: str = keys.TOUCH,
+        obs_key: str = keys.OBSERVATION,
+        seed: int = 0,
+        device: torch.device | str | None = None,
+    ) -> IntrinsicRewards:
+        """The rewards of ``variant`` for ``env``, every size read from its specs.
+
+        ``obs_key`` (``[..., obs_dim]``) and ``force_key`` (``[..., n_sites, n_channels]``) name
+        the env's entries; the dynamics model (variants with ``rs``) predicts the hand's feature
+        groups where the env has them, else the entries its ``observation`` concatenates, else
+        the observation itself. ``settings`` defaults to :class:`~gentlerl.config.GentlenessConfig`.
+        """
+        spec = env.observation_spec
+        present = sorted(map(str, spec.keys(True, True)))
+        for name, key in (("obs_key", obs_key), ("force_key", force_key)):
+            if key not in spec.keys(True, True):
+                raise KeyError(
+                    f"IntrinsicRewards.from_env: {name}={key!r} is not in the env's observation "
+                    f"spec, which has {present}"
+                )
+        force_shape = spec[force_key].shape[len(env.batch_size) :]
+        if len(force_shape) < 2:
+            raise ValueError(
+                f"IntrinsicRewards.from_env: {force_key!r} must be [..., n_sites, n_channels], "
+                f"got {tuple(force_shape)} (UnsqueezeTransform(-1) adds a channel dim)"
+            )
+        return cls(
+            variant,
+            settings if settings is not None else GentlenessConfig(),
+            obs_dim=spec[obs_key].shape[-1],
+            action_dim=env.action_spec.shape[-1],
+            feature_shapes=env_feature_shapes(env, obs_key),
+            seed=seed,
+            force_key=force_key,
+            obs_key=obs_key,
+            device=device,
+        )
+
+    def sampling_transform(self, reward_sum: SumRewards | None = None) -> FreshRewards:
+        """A replay-buffer transform that scores each sampled batch's curiosity (r^s, r^sp, ICM)
+        again with the current models, then sums the components with ``reward_sum``.
+
+        ``rb.append_transform(rewards.sampling_transform(reward_sum))`` on a buffer of 1-step
+        transitions; gentlerl's n-step loop uses :meth:`refresh` instead.
+        """
+        fresh = FreshRewards(self.gated_transforms, reward_sum)
+        self._sampling.append(fresh)
+        return fresh
+
+    def _check_fresh(self) -> None:
+        """Refuse to go on once the rewards are on if r^sp is to be recomputed and never was."""
+        if not self.recomputed or not self.intrinsic_on or self._refreshed:
+            return
+        if any(fresh.reads for fresh in self._sampling):
+            return
+        raise RuntimeError(
+            "recompute_surprise=True, but penalty surprise was never scored again at sampling: "
+            "append rewards.sampling_transform() to the replay buffer (or call refresh() on "
+            "n-step batches), or set GentlenessConfig(recompute_surprise=False)"
         )
 
     @property
@@ -122,6 +219,7 @@ class IntrinsicRewards:
         metrics: dict[str, float] = {}
         if not self.recomputed:
             return metrics
+        self._refreshed = True
         window = batch.get(WINDOW, None)
         if window is None:
             raise KeyError(
@@ -151,8 +249,13 @@ class IntrinsicRewards:
             touch_grid = (keys.TOUCH_GRID, ("next", keys.TOUCH_GRID))
             self.buffer.extend(batch.exclude(*touch_grid, "collector").reshape(-1))
 
-    def update(self, num_updates: int) -> dict[str, float]:
-        """One gradient step of every model, then :meth:`step`; returns ``model_<name>`` losses."""
+    def update(self, num_updates: int | None = None) -> dict[str, float]:
+        """One gradient step of every model, then :meth:`step`; returns ``model_<name>`` losses.
+
+        ``num_updates``: the count including this update (default: one more than the last);
+        ``reward_delay`` and the target periods are counted in these updates.
+        """
+        self._check_fresh()
         metrics = {}
         b = self.settings.model_batch_size
         for name, loss in self.losses.items():
@@ -170,12 +273,15 @@ class IntrinsicRewards:
         self.step(num_updates)
         return metrics
 
-    def step(self, num_updates: int) -> None:
-        """Call once after each model update, with the total update count (paper's schedule).
+    def step(self, num_updates: int | None = None) -> None:
+        """Call once after each model update, with the total update count (paper's schedule;
+        default: one more than the last).
 
         Copies each model into its target every ``target_period`` calls (TorchRL ``HardUpdate``)
         and switches the intrinsic rewards on once ``num_updates >= reward_delay``.
         """
+        num_updates = self.num_updates + 1 if num_updates is None else int(num_updates)
+        self.num_updates = num_updates
         for updater in self._updaters.values():
             updater.step()
         on = num_updates >= self.settings.reward_delay
@@ -189,6 +295,7 @@ class IntrinsicRewards:
             "optimizers": {name: o.state_dict() for name, o in self.optimizers.items()},
             "active": self.intrinsic_on,
             "target_counters": {name: u.counter for name, u in self._updaters.items()},
+            "num_updates": self.num_updates,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -199,35 +306,4 @@ class IntrinsicRewards:
             t.active.fill_(bool(state["active"]))
         for name, counter in state["target_counters"].items():
             self._updaters[name].counter = counter
-
-
-class _Rewards(Compose):
-    """The reward transforms; applied to a batch, first checks that it holds what they read."""
-
-    def __init__(self, *transforms, obs_key: str, force_key: str) -> None:
-        super().__init__(*transforms)
-        self.obs_key, self.force_key = obs_key, force_key
-
-    def check_keys(self, tensordict: TensorDictBase) -> None:
-        """A ``KeyError`` naming the entries that ``tensordict`` lacks: the force (at the root and
-        under ``"next"``) and, for learned rewards, the observation (both) and the action."""
-        wanted = {self.force_key: "force_key"}
-        if any(isinstance(t, ModelRewardTransform) for t in self):  # the models read s_t, a_t
-            wanted = {self.obs_key: "obs_key", keys.ACTION: "action", **wanted}
-        present = set(tensordict.keys(True))
-        missing = [
-            f"{where!r} ({name})"
-            for key, name in wanted.items()
-            for where in ((key,) if key == keys.ACTION else (key, ("next", key)))
-            if where not in present
-        ]
-        if missing:
-            raise KeyError(
-                f"IntrinsicRewards reads {', '.join(missing)}, which the tensordict lacks; it has "
-                f"{sorted(map(str, tensordict.keys()))} (pass obs_key= / force_key= to name the "
-                "env's entries)"
-            )
-
-    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        self.check_keys(tensordict)
-        return super().forward(tensordict)
+        self.num_updates = int(state.get("num_updates", 0))  # absent before the count was kept

@@ -20,14 +20,21 @@ their model and the parameters to read it with, like TorchRL's ``RNDTransform``;
 (:mod:`gentlerl.agent`) hands the same model to the ``LossModule`` that trains it, so the
 transforms import no loss. ``Transform.clone`` keeps sharing the model. Append them to the
 batched env (``TransformedEnv(ParallelEnv(...), rewards.transform)``), not inside the workers: a
-worker process would hold a copy of the networks that the loss's updates never reach.
+worker process would hold a copy of the networks that the loss's updates never reach, so a
+model-reading transform refuses to run in another process than the one it was built in.
+
+For an agent with one critic (SAC, TD3, PPO), :class:`SumRewards` sums the components into one
+``reward``, and :class:`FreshRewards` (``IntrinsicRewards.sampling_transform()``) recomputes the
+model-reading rewards of each sampled batch with the current models, then the sum.
 :class:`gentlerl.agent.IntrinsicRewards` builds them for a paper variant.
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.calibration import TouchCalibration
+from gentlerl.transforms.fresh import FreshRewards
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty
+from gentlerl.transforms.sum import SumRewards
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
@@ -38,10 +45,12 @@ __all__ = [
     "ICM",
     "DynamicsSurprise",
     "ForcePenalty",
+    "FreshRewards",
     "ICMReward",
     "ImpactPenalty",
     "ModelRewardTransform",
     "PenaltySurprise",
+    "SumRewards",
     "TorquePenalty",
     "TouchCalibration",
     "TransitionTransform",

@@ -15,6 +15,7 @@ and are zero after a reset.
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import torch
@@ -114,6 +115,9 @@ class ModelRewardTransform(TransitionTransform):
     loss's target copy, which ``HardUpdate`` refreshes in place). The reward is multiplied by
     ``scale`` and by the :attr:`active` buffer, which stays ``False`` (reward 0) until the
     training loop switches it on after the reward delay.
+
+    It runs only in the process that built it: a copy sent to another process (a collector
+    worker) reads a model that the loss's updates never reach, so :meth:`predict` raises there.
     """
 
     def __init__(
@@ -133,9 +137,17 @@ class ModelRewardTransform(TransitionTransform):
         self.__dict__["params"] = params
         self.scale = float(scale)
         self.register_buffer("active", torch.tensor(False))
+        self.owner_pid = os.getpid()
 
     def predict(self, tensordict: TensorDictBase) -> Any:
         """``model.predict`` (or ``model(...)``) with :attr:`params`, without gradient."""
+        if os.getpid() != self.owner_pid:
+            raise RuntimeError(
+                f"{type(self).__name__} runs in process {os.getpid()} but its model trains in "
+                f"process {self.owner_pid}: this copy would never see an update. Apply the "
+                "reward transforms in the trainer's process (to collected batches, to the "
+                "batched env outside its workers, or as IntrinsicRewards.sampling_transform())"
+            )
         with torch.no_grad(), self.params.to_module(self.model, preserve_module_state=False):
             return self.model.predict(tensordict)
 
