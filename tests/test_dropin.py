@@ -152,8 +152,8 @@ def test_recompute_surprise_never_used_is_an_error_once_the_rewards_are_on():
     rewards = small_rewards(reward_delay=2)
     _, batch = _contact_batch(rewards)
     rewards.extend(batch)
-    rewards.update()
-    rewards.update()  # the gate opens after this one
+    for _ in range(3):  # the gate opens after the second; the first update with it on may
+        rewards.update()  # come before its batch is sampled
     with pytest.raises(RuntimeError, match="sampling_transform"):
         rewards.update()
     quiet = small_rewards(reward_delay=2, recompute_surprise=False)

@@ -80,6 +80,7 @@ class IntrinsicRewards:
         self.num_updates = 0
         self._sampling: list[FreshRewards] = []
         self._refreshed = False
+        self._updates_while_on = 0  # by this object: a resumed run starts again at 0
         ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key, force_key)
         with self.device:
             self._build(ing)
@@ -174,8 +175,12 @@ class IntrinsicRewards:
         return fresh
 
     def _check_fresh(self) -> None:
-        """Refuse to go on once the rewards are on if r^sp is to be recomputed and never was."""
-        if not self.recomputed or not self.intrinsic_on or self._refreshed:
+        """Refuse a second update with the rewards on if r^sp is to be recomputed at sampling
+        and never was (the first may come before its batch is sampled)."""
+        if not self.recomputed or not self.intrinsic_on:
+            return
+        self._updates_while_on += 1
+        if self._updates_while_on < 2 or self._refreshed:
             return
         if any(fresh.reads for fresh in self._sampling):
             return
