@@ -1,0 +1,66 @@
+"""recipes/sac_gentle.py: TorchRL's SAC with gentleness through the public API, on the hand."""
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+RECIPES = Path(__file__).resolve().parents[1] / "recipes"
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(name, RECIPES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_tiny_sac_run_updates_the_models_with_the_learner_and_writes_its_evaluation(tmp_path):
+    sac = load("sac_gentle")
+    cfg = sac.parse(
+        [
+            "total_frames=800", "init_random_frames=400", "frames_per_batch=200",
+            "batch_size=32", "hidden=[16,16]", "reward_delay=10", "eval_every_frames=400",
+            "eval_episodes=1", "final_eval_episodes=2", f"run_dir={tmp_path}",
+        ]
+    )  # fmt: skip
+    result = sac.train(cfg)
+    # 0.25 updates per frame after the 400 random frames: 100 SAC and model updates
+    assert result["updates"] == 100 and result["frames"] == 800
+    written = json.loads((tmp_path / "final_eval.json").read_text())
+    assert written["config"]["variant"] == "r+rf+rsp" and written["episodes"] == 2
+    assert 0.0 <= written["success_rate"] <= 1.0 and written["median_max_impact"] >= 0.0
+    rows = (tmp_path / "evals.csv").read_text().splitlines()
+    assert rows[0].startswith("frames,") and [r.split(",")[0] for r in rows[1:]] == ["400", "800"]
+
+
+def test_the_sac_recipe_refuses_a_bad_setting_in_one_line(capsys):
+    sac = load("sac_gentle")
+    with pytest.raises(SystemExit, match="Key 'bogus' not in 'SACConfig'"):
+        sac.parse(["bogus=1"])
+    with pytest.raises(SystemExit, match="'abc'"):
+        sac.parse(["seed=abc"])
+
+
+def test_the_table_applies_the_preregistered_verdicts():
+    table = load("sac_table")
+    r = {"mean_success": 1.0, "successful_impact": 6.0}
+    assert table.verdict("touch", r, {"mean_success": 0.9, "successful_impact": 4.0}) == (
+        "gentleness transfers"
+    )
+    assert table.verdict("touch", r, {"mean_success": 0.5, "successful_impact": 4.0}) == (
+        "gentler but less successful"
+    )
+    assert table.verdict("touch", r, {"mean_success": 1.0, "successful_impact": 5.0}) == (
+        "not gentler"
+    )
+    weak = {"mean_success": 0.3, "successful_impact": 6.0}
+    assert table.verdict("fragile", weak, {"mean_success": 0.4, "successful_impact": 1.0}) == (
+        "SAC does not learn the task at this budget"
+    )
+    assert table.verdict("fragile", weak, {"mean_success": 0.9, "successful_impact": 2.0}) == (
+        "gentleness transfers; helps on the fragile block"
+    )
