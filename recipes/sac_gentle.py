@@ -183,7 +183,12 @@ def train(cfg: SACConfig) -> dict[str, float]:
         writer = csv.DictWriter(f, fieldnames=list(evals[0]) if evals else ["frames"])
         writer.writeheader()
         writer.writerows(evals)
-    result = {"updates": rewards.num_updates, "frames": frames, **final_evaluation(model[0], cfg)}
+    result = {
+        "updates": rewards.num_updates,
+        "frames": frames,
+        "final_alpha": float(loss.log_alpha.exp()),  # the entropy temperature it ended at
+        **final_evaluation(model[0], cfg),
+    }
     tmp = run_dir / "final_eval.json.tmp"
     tmp.write_text(json.dumps({"config": asdict(cfg), **result}, indent=1) + "\n")
     tmp.replace(run_dir / "final_eval.json")
