@@ -9,22 +9,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-
-import torch
-from torchrl.envs.transforms import Transform
-from torchrl.objectives.common import LossModule
+from typing import TYPE_CHECKING
 
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig
-from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
-from gentlerl.objectives import EnsembleModelLoss, ICMLoss
-from gentlerl.transforms import (
-    DynamicsSurprise,
-    ForcePenalty,
-    ICMReward,
-    PenaltySurprise,
-    TorquePenalty,
-)
+
+if TYPE_CHECKING:
+    from torchrl.envs.transforms import Transform
+    from torchrl.objectives.common import LossModule
+
+# The builders import the models, losses and transforms (torch, TorchRL) when they build: the
+# tables below are read by ``--help`` and the config checks, which must not wait for them.
 
 
 @dataclass
@@ -81,6 +76,10 @@ def _hidden(ing: Ingredients) -> tuple[int, int, int]:
 
 
 def _dynamics_surprise(ing: Ingredients) -> Part:
+    from gentlerl.models import DynamicsModel
+    from gentlerl.objectives import EnsembleModelLoss
+    from gentlerl.transforms import DynamicsSurprise
+
     model = DynamicsModel(
         ing.obs_dim,
         ing.action_dim,
@@ -97,6 +96,10 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
 
 
 def _penalty_surprise(ing: Ingredients) -> Part:
+    from gentlerl.models import PenaltyModel
+    from gentlerl.objectives import EnsembleModelLoss
+    from gentlerl.transforms import PenaltySurprise
+
     s = ing.settings
     model = PenaltyModel(
         ing.obs_dim,
@@ -118,11 +121,29 @@ def _penalty_surprise(ing: Ingredients) -> Part:
 
 
 def _icm_reward(ing: Ingredients) -> Part:
+    import torch
+
+    from gentlerl.models import ICMModel
+    from gentlerl.objectives import ICMLoss
+    from gentlerl.transforms import ICMReward
+
     with torch.random.fork_rng():
         torch.manual_seed(ing.seed + 2)
         model = ICMModel(ing.obs_dim, ing.action_dim, obs_key=ing.obs_key)
     loss = ICMLoss(model)
     return Part(ICMReward(model, loss.model_params, eta=ing.settings.icm_eta), loss)
+
+
+def _force_penalty(ing: Ingredients) -> Part:
+    from gentlerl.transforms import ForcePenalty
+
+    return Part(ForcePenalty(in_keys=[ing.force_key]))
+
+
+def _torque_penalty(ing: Ingredients) -> Part:
+    from gentlerl.transforms import TorquePenalty
+
+    return Part(TorquePenalty())
 
 
 #: Every reward component, by its key (= the name of its critic head).
@@ -133,10 +154,8 @@ COMPONENTS: dict[str, Component] = {
     keys.PENALTY_SURPRISE: Component(_penalty_surprise, intrinsic=True, model="penalty"),
     keys.ICM_REWARD: Component(_icm_reward, intrinsic=True, model="icm"),
     # Beyond the paper (its future work on wear): total fingertip force and actuator effort.
-    keys.FORCE_PENALTY: Component(
-        lambda ing: Part(ForcePenalty(in_keys=[ing.force_key])), upper_bound=0.0
-    ),
-    keys.TORQUE_PENALTY: Component(lambda ing: Part(TorquePenalty()), upper_bound=0.0),
+    keys.FORCE_PENALTY: Component(_force_penalty, upper_bound=0.0),
+    keys.TORQUE_PENALTY: Component(_torque_penalty, upper_bound=0.0),
 }
 
 #: Reward components (critic heads, in order) of each variant of the paper's experiments.
