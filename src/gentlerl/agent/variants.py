@@ -16,6 +16,7 @@ from gentlerl.config import GentlenessConfig
 
 if TYPE_CHECKING:
     from torchrl.envs.transforms import Transform
+    from torchrl.objectives import HardUpdate
     from torchrl.objectives.common import LossModule
 
 # The builders import the models, losses and transforms (torch, TorchRL) when they build: the
@@ -40,13 +41,26 @@ class Ingredients:
 class Part:
     """A built component: its transform and, for a learned reward, the loss training its model.
 
-    ``target_period``: model updates between hard copies of the loss's target parameters
-    (``None``: the transform reads the online model).
+    ``target_updater``: the TorchRL ``HardUpdate`` copying the loss's target parameters, made by
+    :func:`target_updater` before the transform reads them (``None``: the transform reads the
+    online model).
     """
 
     transform: Transform
     loss: LossModule | None = None
-    target_period: int | None = None
+    target_updater: HardUpdate | None = None
+
+
+def target_updater(loss: LossModule, period: int) -> HardUpdate:
+    """TorchRL's ``HardUpdate`` of ``loss``, copying its targets every ``period`` ``step()`` calls.
+
+    Made before anything reads ``loss.target_*_params``: TorchRL warns on every read of target
+    parameters that no updater has been associated with.
+    """
+    from torchrl.objectives import HardUpdate
+
+    # HardUpdate copies on the (interval + 1)-th step() call.
+    return HardUpdate(loss, value_network_update_interval=period - 1)
 
 
 @dataclass(frozen=True)
@@ -90,9 +104,10 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
         obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="dynamics")
+    updater = target_updater(loss, ing.settings.dynamics_target_period)
     scale = ing.settings.surprise_scale * ing.settings.dynamics_surprise_scale
     transform = DynamicsSurprise(model, loss.target_model_params, scale=scale)
-    return Part(transform, loss, ing.settings.dynamics_target_period)
+    return Part(transform, loss, updater)
 
 
 def _penalty_surprise(ing: Ingredients) -> Part:
@@ -110,6 +125,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="penalty")
+    updater = target_updater(loss, s.penalty_target_period)
     transform = PenaltySurprise(
         model,
         loss.target_model_params,
@@ -117,7 +133,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         scale=s.surprise_scale,
         nll_floor=s.surprise_nll_floor,
     )
-    return Part(transform, loss, s.penalty_target_period)
+    return Part(transform, loss, updater)
 
 
 def _icm_reward(ing: Ingredients) -> Part:

@@ -1,13 +1,11 @@
 """The Shadow Hand gentle-touch environments: dm_control tasks and their TorchRL wrapper.
 
-The OpenGL backend is chosen here, before anything imports dm_control; the names below are
-imported on first use (:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
+The OpenGL backend is chosen when ``gentlerl`` is imported, before anything imports dm_control
+(:func:`~gentlerl.envs.rendering.configure_gl`); the names below are imported on first use
+(:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
 """
 
-from gentlerl.envs.rendering import configure_gl
 from gentlerl.lazy import lazy_exports
-
-configure_gl()  # before dm_control is imported
 
 __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
