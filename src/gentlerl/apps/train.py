@@ -127,6 +127,15 @@ def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
         raise
 
 
+def quiet_torchrl_info() -> None:
+    """TorchRL's logger at WARNING, unless ``RL_LOGGING_LEVEL`` says otherwise: its INFO lines
+    (each replay storage's size) would sit between the progress bar and the summary. TorchRL
+    reads the variable when it is imported (here, and in collector processes)."""
+    import os
+
+    os.environ.setdefault("RL_LOGGING_LEVEL", "WARNING")
+
+
 @hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
 def _app(cfg: DictConfig) -> dict[str, float]:
     from hydra.core.hydra_config import HydraConfig
@@ -134,6 +143,7 @@ def _app(cfg: DictConfig) -> dict[str, float]:
     from gentlerl.apps.errors import debugging, interrupted, one_line
     from gentlerl.distributed import ClusterError
 
+    quiet_torchrl_info()
     try:
         summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
@@ -144,7 +154,10 @@ def _app(cfg: DictConfig) -> dict[str, float]:
         if interrupted(err):  # Ctrl-C that surfaced as another error inside a library
             raise KeyboardInterrupt from None
         raise SystemExit(f"gentlerl train: error: {one_line(err)}") from None
-    print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
+    from gentlerl.apps.closing import closing_text
+    from gentlerl.training.logging import force_unit
+
+    print(closing_text(summary, cfg.run_dir, force_unit(cfg.env.force_scale)))
     return summary
 
 
