@@ -24,6 +24,6 @@ _record_missing_pandas()
 
 # Before anything imports dm_control (a TorchRL DMControlEnv too): on a headless machine its
 # default backend, GLFW, prints a GLFWError about the missing DISPLAY.
-from gentlerl.envs.rendering import configure_gl  # noqa: E402
+from gentlerl.opengl import configure_gl  # noqa: E402
 
 configure_gl()

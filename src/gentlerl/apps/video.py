@@ -27,8 +27,8 @@ from gentlerl import keys
 from gentlerl.apps.outputs import check_output_file
 from gentlerl.apps.parsing import command_parser
 from gentlerl.envs.assets import FINGERTIPS
-from gentlerl.envs.rendering import INSTALL_HINT, configure_gl
 from gentlerl.functional import impact
+from gentlerl.opengl import INSTALL_HINT, configure_gl
 
 if TYPE_CHECKING:  # the env module imports dm_control, which fixes its backend: see main
     from gentlerl.envs import HandEnv

@@ -1,7 +1,7 @@
 """The Shadow Hand gentle-touch environments: dm_control tasks and their TorchRL wrapper.
 
 The OpenGL backend is chosen when ``gentlerl`` is imported, before anything imports dm_control
-(:func:`~gentlerl.envs.rendering.configure_gl`); the names below are imported on first use
+(:func:`~gentlerl.opengl.configure_gl`); the names below are imported on first use
 (:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
 """
 

@@ -58,7 +58,12 @@ def _scale_names() -> list[str]:
 class TrainConfig:
     """A training run: what it is (task, variant, seed, scale), where it goes, and its groups."""
 
-    task: str = setting("touch", "the env task", choices=_task_names)
+    task: str = setting(
+        "touch",
+        "the env task (touch: success is a fingerpad press > 5 N, which random actions often "
+        "reach, so the measure is how gently; fragile: also broken by an impact > 3 N)",
+        choices=_task_names,
+    )
     variant: str = setting(
         "r+rf+rsp", "reward components, one critic head each", choices=_variant_names
     )

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from gentlerl.envs import rendering
+from gentlerl import opengl
 from tests.test_evaluate import _scripted_policy
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
     [(True, True, "osmesa"), (True, False, "osmesa"), (False, True, "egl"), (False, False, "disable")],
 )  # fmt: skip
 def test_headless_backend_prefers_osmesa_then_egl(has_osmesa, egl_loads, backend):
-    assert rendering.headless_backend(has_osmesa, egl_loads) == backend
+    assert opengl.headless_backend(has_osmesa, egl_loads) == backend
 
 
 @pytest.fixture
@@ -44,7 +44,7 @@ def headless(monkeypatch):
     for var in ("DISPLAY", "MUJOCO_GL", "PYOPENGL_PLATFORM"):
         monkeypatch.delenv(var, raising=False)
     monkeypatch.delitem(sys.modules, "dm_control._render", raising=False)
-    monkeypatch.setattr(rendering, "_chosen", None)
+    monkeypatch.setattr(opengl, "_chosen", None)
     monkeypatch.setattr(ctypes.util, "find_library", libs.get)
     monkeypatch.setattr(ctypes, "CDLL", cdll)
     return libs, opened, loads
@@ -53,15 +53,15 @@ def headless(monkeypatch):
 def test_a_run_that_does_not_render_leaves_egl_closed(headless):
     libs, opened, _ = headless
     libs["EGL"] = "libEGL.so.1"
-    rendering.configure_gl()
+    opengl.configure_gl()
     assert os.environ["MUJOCO_GL"] == "disable" and opened == []  # EGL costs 0.5 s per process
 
 
 def test_rendering_picks_egl_when_osmesa_is_absent_and_egl_loads(headless):
     libs, opened, _ = headless
     libs["EGL"] = "libEGL.so.1"
-    rendering.configure_gl()  # at `import gentlerl`
-    rendering.configure_gl(render=True)  # `gentlerl video`, before dm_control is imported
+    opengl.configure_gl()  # at `import gentlerl`
+    opengl.configure_gl(render=True)  # `gentlerl video`, before dm_control is imported
     assert os.environ["MUJOCO_GL"] == "egl" and opened == ["libEGL.so.1"]
     assert "PYOPENGL_PLATFORM" not in os.environ  # dm_control's EGL renderer sets it itself
 
@@ -69,7 +69,7 @@ def test_rendering_picks_egl_when_osmesa_is_absent_and_egl_loads(headless):
 def test_rendering_prefers_osmesa_where_it_is_installed(headless):
     libs, opened, _ = headless
     libs.update(OSMesa="libOSMesa.so.8", EGL="libEGL.so.1")
-    rendering.configure_gl(render=True)
+    opengl.configure_gl(render=True)
     assert os.environ["MUJOCO_GL"] == os.environ["PYOPENGL_PLATFORM"] == "osmesa"
     assert opened == []
 
@@ -80,7 +80,7 @@ def test_rendering_is_off_when_egl_is_missing_or_does_not_load(headless, libegl)
     if libegl:
         libs["EGL"] = libegl
         loads["ok"] = False
-    rendering.configure_gl(render=True)
+    opengl.configure_gl(render=True)
     assert os.environ["MUJOCO_GL"] == "disable"
 
 
@@ -88,24 +88,24 @@ def test_a_backend_the_user_set_or_dm_control_already_uses_is_kept(headless, mon
     libs, opened, _ = headless
     libs["EGL"] = "libEGL.so.1"
     monkeypatch.setenv("MUJOCO_GL", "glfw")
-    rendering.configure_gl(render=True)
+    opengl.configure_gl(render=True)
     assert os.environ["MUJOCO_GL"] == "glfw"
     monkeypatch.delenv("MUJOCO_GL")
-    rendering.configure_gl()
+    opengl.configure_gl()
     monkeypatch.setitem(sys.modules, "dm_control._render", object())  # its backend is fixed
-    rendering.configure_gl(render=True)
+    opengl.configure_gl(render=True)
     assert os.environ["MUJOCO_GL"] == "disable" and opened == []
 
 
 def test_a_display_leaves_the_choice_to_dm_control(headless, monkeypatch):
     headless[0]["EGL"] = "libEGL.so.1"
     monkeypatch.setenv("DISPLAY", ":0")
-    rendering.configure_gl(render=True)
+    opengl.configure_gl(render=True)
     assert "MUJOCO_GL" not in os.environ
 
 
 @pytest.mark.skipif(
-    ctypes.util.find_library("OSMesa") is not None or not rendering.egl_loads(),
+    ctypes.util.find_library("OSMesa") is not None or not opengl.egl_loads(),
     reason="needs libEGL without libOSMesa",
 )
 def test_video_renders_with_egl_when_mujoco_gl_is_unset(tmp_path):
