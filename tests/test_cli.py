@@ -62,7 +62,8 @@ def test_train_help_lists_tasks_variants_scales_and_the_config_defaults():
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     text = " ".join(done.stdout.split())
-    assert "task=touch the env task {" + ", ".join(TASKS) + "}" in text
+    assert "task=touch the env task (touch: success is a fingerpad press > 5 N" in text
+    assert "{" + ", ".join(TASKS) + "}" in text
     assert "scale=cpu preset applied under the overrides {cpu, paper, real}" in text
     assert "{" + ", ".join(VARIANTS) + "}" in text
     assert "collector.total_frames=100000" in text and "seed=0" in text

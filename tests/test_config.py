@@ -134,7 +134,7 @@ def test_missing_env_keys_are_reported_before_training():
                                feature_shapes={})  # fmt: skip
     check_env_keys(env, rewards)  # the toy env has the hand env's keys
     no_touch = TransformedEnv(ToyHandEnv(), RenameTransform(["touch"], ["force"]))
-    with pytest.raises(ValueError, match="the env does not produce 'touch'"):
+    with pytest.raises(ValueError, match="ImpactPenalty reads 'touch', which the env's spec lacks"):
         check_env_keys(no_touch, rewards)
     no_observation = TransformedEnv(ToyHandEnv(), RenameTransform(["observation"], ["state"]))
     with pytest.raises(ValueError, match=r"key\(s\) \['observation'\] needed by the run"):

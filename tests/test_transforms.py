@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.envs import Compose, ParallelEnv, SerialEnv, TransformedEnv
+from torchrl.envs import Compose, ParallelEnv, RenameTransform, SerialEnv, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
@@ -57,6 +57,26 @@ def test_impact_penalty_custom_keys_and_bad_args():
         ImpactPenalty(in_keys=["a", "b"])
     with pytest.raises(ValueError, match="lam"):
         ImpactPenalty((-1.0, 2.0))
+
+
+@pytest.mark.parametrize("where", ["spec", "reset", "step", "batch"])
+def test_a_missing_force_key_is_one_line_naming_it_and_the_keys_there(where):
+    # The hand's force key is "touch"; an env that writes "force" needs in_keys=["force"].
+    env = TransformedEnv(ToyHandEnv(), RenameTransform([keys.TOUCH], ["force"]))
+    batch = env.rollout(2)
+    penalty = ImpactPenalty()
+    act = {
+        "spec": lambda: env.append_transform(penalty).observation_spec,
+        "reset": lambda: penalty._reset(batch[0], batch[0].exclude("next")),
+        "step": lambda: penalty._step(batch[0], batch[0]["next"]),
+        "batch": lambda: penalty(batch),
+    }[where]
+    with pytest.raises(ValueError) as err:
+        act()
+    message = str(err.value)
+    assert "\n" not in message and "ImpactPenalty reads 'touch'" in message
+    assert "'force'" in message and "'observation'" in message  # the keys the env has
+    assert message.endswith("(set in_keys to the env's key)")
 
 
 def _pressing_rollout(env, steps=12):

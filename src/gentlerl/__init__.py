@@ -21,3 +21,9 @@ def _record_missing_pandas() -> None:
 
 
 _record_missing_pandas()
+
+# Before anything imports dm_control (a TorchRL DMControlEnv too): on a headless machine its
+# default backend, GLFW, prints a GLFWError about the missing DISPLAY.
+from gentlerl.opengl import configure_gl  # noqa: E402
+
+configure_gl()

@@ -100,12 +100,8 @@ class IntrinsicRewards:
             transforms.append(part.transform)
             if part.loss is not None:
                 self.losses[component.model] = part.loss
-            if part.target_period is not None:
-                # TorchRL's HardUpdate copies on the (interval + 1)-th step() call.
-                interval = part.target_period - 1
-                self._updaters[component.model] = HardUpdate(
-                    part.loss, value_network_update_interval=interval
-                )
+            if part.target_updater is not None:
+                self._updaters[component.model] = part.target_updater
         self.transform = RewardChain(*transforms, obs_key=ing.obs_key, force_key=force_key)
         self.optimizers = {
             # fused: one kernel per step instead of ~10 per parameter tensor

@@ -9,22 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-
-import torch
-from torchrl.envs.transforms import Transform
-from torchrl.objectives.common import LossModule
+from typing import TYPE_CHECKING
 
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig
-from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
-from gentlerl.objectives import EnsembleModelLoss, ICMLoss
-from gentlerl.transforms import (
-    DynamicsSurprise,
-    ForcePenalty,
-    ICMReward,
-    PenaltySurprise,
-    TorquePenalty,
-)
+
+if TYPE_CHECKING:
+    from torchrl.envs.transforms import Transform
+    from torchrl.objectives import HardUpdate
+    from torchrl.objectives.common import LossModule
+
+# The builders import the models, losses and transforms (torch, TorchRL) when they build: the
+# tables below are read by ``--help`` and the config checks, which must not wait for them.
 
 
 @dataclass
@@ -45,13 +41,26 @@ class Ingredients:
 class Part:
     """A built component: its transform and, for a learned reward, the loss training its model.
 
-    ``target_period``: model updates between hard copies of the loss's target parameters
-    (``None``: the transform reads the online model).
+    ``target_updater``: the TorchRL ``HardUpdate`` copying the loss's target parameters, made by
+    :func:`target_updater` before the transform reads them (``None``: the transform reads the
+    online model).
     """
 
     transform: Transform
     loss: LossModule | None = None
-    target_period: int | None = None
+    target_updater: HardUpdate | None = None
+
+
+def target_updater(loss: LossModule, period: int) -> HardUpdate:
+    """TorchRL's ``HardUpdate`` of ``loss``, copying its targets every ``period`` ``step()`` calls.
+
+    Made before anything reads ``loss.target_*_params``: TorchRL warns on every read of target
+    parameters that no updater has been associated with.
+    """
+    from torchrl.objectives import HardUpdate
+
+    # HardUpdate copies on the (interval + 1)-th step() call.
+    return HardUpdate(loss, value_network_update_interval=period - 1)
 
 
 @dataclass(frozen=True)
@@ -81,6 +90,10 @@ def _hidden(ing: Ingredients) -> tuple[int, int, int]:
 
 
 def _dynamics_surprise(ing: Ingredients) -> Part:
+    from gentlerl.models import DynamicsModel
+    from gentlerl.objectives import EnsembleModelLoss
+    from gentlerl.transforms import DynamicsSurprise
+
     model = DynamicsModel(
         ing.obs_dim,
         ing.action_dim,
@@ -91,12 +104,17 @@ def _dynamics_surprise(ing: Ingredients) -> Part:
         obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="dynamics")
+    updater = target_updater(loss, ing.settings.dynamics_target_period)
     scale = ing.settings.surprise_scale * ing.settings.dynamics_surprise_scale
     transform = DynamicsSurprise(model, loss.target_model_params, scale=scale)
-    return Part(transform, loss, ing.settings.dynamics_target_period)
+    return Part(transform, loss, updater)
 
 
 def _penalty_surprise(ing: Ingredients) -> Part:
+    from gentlerl.models import PenaltyModel
+    from gentlerl.objectives import EnsembleModelLoss
+    from gentlerl.transforms import PenaltySurprise
+
     s = ing.settings
     model = PenaltyModel(
         ing.obs_dim,
@@ -107,6 +125,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         obs_key=ing.obs_key,
     )
     loss = EnsembleModelLoss(model, name="penalty")
+    updater = target_updater(loss, s.penalty_target_period)
     transform = PenaltySurprise(
         model,
         loss.target_model_params,
@@ -114,15 +133,33 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         scale=s.surprise_scale,
         nll_floor=s.surprise_nll_floor,
     )
-    return Part(transform, loss, s.penalty_target_period)
+    return Part(transform, loss, updater)
 
 
 def _icm_reward(ing: Ingredients) -> Part:
+    import torch
+
+    from gentlerl.models import ICMModel
+    from gentlerl.objectives import ICMLoss
+    from gentlerl.transforms import ICMReward
+
     with torch.random.fork_rng():
         torch.manual_seed(ing.seed + 2)
         model = ICMModel(ing.obs_dim, ing.action_dim, obs_key=ing.obs_key)
     loss = ICMLoss(model)
     return Part(ICMReward(model, loss.model_params, eta=ing.settings.icm_eta), loss)
+
+
+def _force_penalty(ing: Ingredients) -> Part:
+    from gentlerl.transforms import ForcePenalty
+
+    return Part(ForcePenalty(in_keys=[ing.force_key]))
+
+
+def _torque_penalty(ing: Ingredients) -> Part:
+    from gentlerl.transforms import TorquePenalty
+
+    return Part(TorquePenalty())
 
 
 #: Every reward component, by its key (= the name of its critic head).
@@ -133,10 +170,8 @@ COMPONENTS: dict[str, Component] = {
     keys.PENALTY_SURPRISE: Component(_penalty_surprise, intrinsic=True, model="penalty"),
     keys.ICM_REWARD: Component(_icm_reward, intrinsic=True, model="icm"),
     # Beyond the paper (its future work on wear): total fingertip force and actuator effort.
-    keys.FORCE_PENALTY: Component(
-        lambda ing: Part(ForcePenalty(in_keys=[ing.force_key])), upper_bound=0.0
-    ),
-    keys.TORQUE_PENALTY: Component(lambda ing: Part(TorquePenalty()), upper_bound=0.0),
+    keys.FORCE_PENALTY: Component(_force_penalty, upper_bound=0.0),
+    keys.TORQUE_PENALTY: Component(_torque_penalty, upper_bound=0.0),
 }
 
 #: Reward components (critic heads, in order) of each variant of the paper's experiments.

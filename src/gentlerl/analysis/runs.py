@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from numpy.lib import recfunctions
 
 from gentlerl.config.layout import CONFIG, RunLayout
 
@@ -171,10 +172,16 @@ def after_intrinsic_start(runs: Sequence[Run], *, with_zeros: bool = False) -> n
     return values if with_zeros else values[values > 0]
 
 
+#: Outcome columns of an episodes CSV that an env without them (an external env) leaves out;
+#: read back as NaN, so that every reader sees the same columns.
+OUTCOME_COLUMNS = ("success", "broken")
+
+
 def _episode_rows(path: Path) -> np.ndarray:
     """The rows of an episodes CSV (columns ``frames, episode, success, broken, max_impact,
-    return``) as a read-only structured array; empty if the file is missing or empty. A figure
-    asks for the same files many times: each version of a file (path, mtime, size) is parsed once.
+    return``; :data:`OUTCOME_COLUMNS` NaN where the file has none) as a read-only structured
+    array; empty if the file is missing or empty. A figure asks for the same files many times:
+    each version of a file (path, mtime, size) is parsed once.
     """
     stat = path.stat() if path.is_file() else None
     if stat is None or stat.st_size == 0:
@@ -186,6 +193,10 @@ def _episode_rows(path: Path) -> np.ndarray:
 def _parse_episodes(path: str, mtime_ns: int, size: int) -> np.ndarray:
     """:func:`_episode_rows` of one version of a file (``mtime_ns`` and ``size`` key the cache)."""
     rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    missing = [c for c in OUTCOME_COLUMNS if c not in rows.dtype.names]
+    if missing:
+        nan = [np.full(len(rows), np.nan) for _ in missing]
+        rows = recfunctions.append_fields(rows, missing, nan, usemask=False)
     rows.flags.writeable = False
     return rows
 

@@ -32,17 +32,21 @@ SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", 
 def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
     """Success and broken rates and median / p90 max impact (N) of evaluation episodes.
 
-    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1, NaN for an env without
-    them: its rates are NaN), ``max_impact`` and ``return`` (``mean_return``), as
+    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1; an env without them
+    has no rates), ``max_impact`` and ``return`` (``mean_return``), as
     :func:`gentlerl.training.evaluation.evaluate` returns them.
     """
     if not episodes:
         raise ValueError("need at least one episode to summarize, got none")
     impact = np.array([e["max_impact"] for e in episodes], dtype=np.float64)
+    rates = {
+        f"{k}_rate": float(np.mean([e[k] for e in episodes]))
+        for k in ("success", "broken")
+        if all(k in e for e in episodes)
+    }
     return {
         "episodes": len(episodes),
-        "success_rate": float(np.mean([e["success"] for e in episodes])),
-        "broken_rate": float(np.mean([e["broken"] for e in episodes])),
+        **rates,
         "median_max_impact": float(np.median(impact)),
         "p90_max_impact": float(np.percentile(impact, 90)),
         "mean_return": float(np.mean([e.get("return", np.nan) for e in episodes])),
@@ -66,6 +70,7 @@ def evaluate_policy(
     from gentlerl.training.builders import default_env_factory, make_eval_env
     from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
     from gentlerl.training.evaluation import evaluate
+    from gentlerl.training.logging import force_unit
 
     if not (isinstance(episodes, int) and episodes >= 1):
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -95,7 +100,8 @@ def evaluate_policy(
         env.close()
     if episodes_csv is not None:
         write_episodes(episodes_csv, policy_frames(state), per_episode)
-    return {"task": task or cfg.env.name or cfg.task, **summarize(per_episode)}
+    task_name = task or cfg.env.name or cfg.task
+    return {"task": task_name, **summarize(per_episode), "unit": force_unit(cfg.env.force_scale)}
 
 
 def write_episodes(
@@ -103,17 +109,16 @@ def write_episodes(
 ) -> Path:
     """One CSV row per episode with a run's ``eval_episodes.csv`` columns, written atomically;
     ``frames``: the frames the policy trained for (-1 if unknown)."""
-    from gentlerl.training.logging import EVAL_COLUMNS, outcome
+    from gentlerl.training.logging import episode_table
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
+    header, rows = episode_table(-1 if frames is None else frames, episodes)
     with tmp.open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(EVAL_COLUMNS)
-        for i, ep in enumerate(episodes):
-            row = (outcome(ep["success"]), outcome(ep["broken"]), ep["max_impact"], ep["return"])
-            writer.writerow([-1 if frames is None else frames, i, *row])
+        writer.writerow(header)
+        writer.writerows(rows)
     tmp.replace(path)
     return path
 
@@ -143,10 +148,15 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl evaluate") -> 
     if args.json:
         print(json.dumps({"policy": str(args.policy), **result}))
     else:
+        rates = "".join(
+            f"{k.removesuffix('_rate')} {result[k]:.2f}  "
+            for k in ("success_rate", "broken_rate")
+            if k in result
+        )
         print(
             f"{args.policy} on {result['task']}, {result['episodes']} episodes (seed {args.seed}):\n"
-            f"  success {result['success_rate']:.2f}  broken {result['broken_rate']:.2f}  "
-            f"max impact median {result['median_max_impact']:.2f} N, "
-            f"p90 {result['p90_max_impact']:.2f} N, return {result['mean_return']:.1f}"
+            f"  {rates}max impact median {result['median_max_impact']:.2f} {result['unit']}, "
+            f"p90 {result['p90_max_impact']:.2f} {result['unit']}, "
+            f"return {result['mean_return']:.1f}"
         )
     return result

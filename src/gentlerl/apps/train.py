@@ -67,25 +67,30 @@ def _override(value: Any) -> str:
     return str(value)
 
 
-def _help_template() -> str:
-    # OmegaConf would read "${" in the template as an interpolation.
-    return (HELP + describe() + "\n\nHydra flags:\n$FLAGS_HELP\n").replace("${", "\\${")
+def help_page() -> str:
+    """What ``--help`` prints: the usage, one line per field, then hydra's own flags.
+
+    Printed before hydra starts: hydra's help would first list every config group, which takes
+    seconds, for a page that shows none of them.
+    """
+    from hydra._internal.hydra import Hydra
+    from hydra._internal.utils import get_args_parser
+
+    flags = Hydra.format_args_help(get_args_parser())
+    return f"{HELP}{describe()}\n\nHydra flags:\n{flags}\n"
 
 
 def register_configs() -> None:
-    """Store the schema, the scale presets, the help page and the primary config."""
+    """Store the schema, the scale presets and the primary config."""
     OmegaConf.register_new_resolver("gentlerl_run_name", run_name, replace=True)
     cs = ConfigStore.instance()
     cs.store(name="train_schema", node=TrainConfig)
     for name, preset in SCALES.items():
         cs.store(group="scale", name=name, node={"scale": name, **preset}, package="_global_")
-    help_node = {"app_name": "gentlerl-train", "header": "", "footer": ""}
-    cs.store(group="hydra/help", name="gentlerl", node={**help_node, "template": _help_template()})
     defaults: list[Any] = [
         "train_schema",
         {"scale": "cpu"},
         "_self_",
-        {"override hydra/help": "gentlerl"},
         {"override hydra/job_logging": "disabled"},
         {"override hydra/hydra_logging": "disabled"},
     ]
@@ -111,14 +116,24 @@ def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
     hydra makes its output dir (the run_dir) before the config is checked, so a refused run
     would leave an empty directory behind.
     """
-    from gentlerl.training.loop import train
-
     try:
-        return train(config_from_hydra(cfg))
+        config = config_from_hydra(cfg)  # a refused config answers before torch is imported
+        from gentlerl.training.loop import train
+
+        return train(config)
     except Exception:
         if output_dir.is_dir() and not any(output_dir.iterdir()):
             output_dir.rmdir()
         raise
+
+
+def quiet_torchrl_info() -> None:
+    """TorchRL's logger at WARNING, unless ``RL_LOGGING_LEVEL`` says otherwise: its INFO lines
+    (each replay storage's size) would sit between the progress bar and the summary. TorchRL
+    reads the variable when it is imported (here, and in collector processes)."""
+    import os
+
+    os.environ.setdefault("RL_LOGGING_LEVEL", "WARNING")
 
 
 @hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
@@ -128,6 +143,7 @@ def _app(cfg: DictConfig) -> dict[str, float]:
     from gentlerl.apps.errors import debugging, interrupted, one_line
     from gentlerl.distributed import ClusterError
 
+    quiet_torchrl_info()
     try:
         summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
@@ -138,7 +154,10 @@ def _app(cfg: DictConfig) -> dict[str, float]:
         if interrupted(err):  # Ctrl-C that surfaced as another error inside a library
             raise KeyboardInterrupt from None
         raise SystemExit(f"gentlerl train: error: {one_line(err)}") from None
-    print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
+    from gentlerl.apps.closing import closing_text
+    from gentlerl.training.logging import force_unit
+
+    print(closing_text(summary, cfg.run_dir, force_unit(cfg.env.force_scale)))
     return summary
 
 
@@ -154,6 +173,9 @@ def unknown_fields(overrides: list[str]) -> list[str]:
 
 def main() -> None:
     """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides."""
+    if {"-h", "--help"} & set(sys.argv[1:]):
+        print(help_page())
+        return
     unknown = unknown_fields(sys.argv[1:])
     if unknown:
         raise SystemExit(

@@ -4,8 +4,9 @@ As in the paper's figure of the touch task: each fingertip is coloured by its im
 (about 0 N) to red (>= 10 N); the block turns blue on success and black when it breaks (both stand
 out against the scene's green background and the yellow-red fingertips). A panel under each frame
 shows every fingertip's impact as a bar and a number in N, readable at the default 240 px.
-Rendering is offscreen and needs OSMesa (``apt-get install libosmesa6``; gentlerl selects
-``MUJOCO_GL=osmesa`` itself on a headless machine when the library is there). ``.mp4`` is written
+Rendering is offscreen: on a headless machine gentlerl selects ``MUJOCO_GL=osmesa`` itself when
+libOSMesa is installed, else ``MUJOCO_GL=egl`` when libEGL loads (``apt-get install libosmesa6``
+or ``libegl1``). ``.mp4`` is written
 with the ``imageio-ffmpeg`` package (a dependency, it ships its own ffmpeg), ``.gif`` with Pillow.
 """
 
@@ -15,10 +16,7 @@ import argparse
 import os
 from collections.abc import Sequence
 from pathlib import Path
-
-# gentlerl.envs first: it picks the OpenGL backend before torchrl imports MuJoCo, whose import
-# crashes on a backend that cannot load (MUJOCO_GL=osmesa without libOSMesa).
-from gentlerl.envs import HandEnv, make_env  # isort: split
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -29,8 +27,11 @@ from gentlerl import keys
 from gentlerl.apps.outputs import check_output_file
 from gentlerl.apps.parsing import command_parser
 from gentlerl.envs.assets import FINGERTIPS
-from gentlerl.envs.rendering import INSTALL_HINT
 from gentlerl.functional import impact
+from gentlerl.opengl import INSTALL_HINT, configure_gl
+
+if TYPE_CHECKING:  # the env module imports dm_control, which fixes its backend: see main
+    from gentlerl.envs import HandEnv
 
 FULL_RED_AT = 10.0  # N
 # Blue and black: the scene's background is green (gymnasium-robotics' skybox) and the fingertips
@@ -191,6 +192,8 @@ def build_parser(prog: str = "gentlerl video") -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> None:
     """Record a checkpoint's deterministic rollouts to a video file."""
+    configure_gl(render=True)  # before dm_control is imported: EGL where OSMesa is absent
+    from gentlerl.envs import make_env
     from gentlerl.training.checkpoint import load_policy
 
     args = build_parser(prog).parse_args(argv)

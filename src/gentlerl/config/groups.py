@@ -117,7 +117,10 @@ class CollectorConfig:
         200, "env steps per collector batch", bounds=">= 1", resumable=True
     )
     init_random_frames: int = setting(
-        10_000, "uniform random actions first (~1 % of them succeed)", bounds=">= 0",
+        10_000,
+        "uniform random actions first (paper hand, 20 episodes each: 40 % succeed at touch, "
+        "70 % break the fragile block)",
+        bounds=">= 0",
         resumable=True,
     )  # fmt: skip
     sigma: float = setting(

@@ -1,38 +1,24 @@
-"""The Shadow Hand gentle-touch environments: dm_control tasks and their TorchRL wrapper."""
+"""The Shadow Hand gentle-touch environments: dm_control tasks and their TorchRL wrapper.
 
-from gentlerl.envs.rendering import configure_gl
+The OpenGL backend is chosen when ``gentlerl`` is imported, before anything imports dm_control
+(:func:`~gentlerl.opengl.configure_gl`); the names below are imported on first use
+(:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
+"""
 
-configure_gl()  # before dm_control is imported
+from gentlerl.lazy import lazy_exports
 
-from gentlerl.envs.batched import BatchedHandEnv  # noqa: E402
-from gentlerl.envs.driver import DriverSpec, HandDriver, HandReading  # noqa: E402
-from gentlerl.envs.driver_env import DriverHandEnv  # noqa: E402
-from gentlerl.envs.environment import HandEnvironment  # noqa: E402
-from gentlerl.envs.factory import SUITE, TASK_CLASSES, TASKS, make_dm_env, make_env  # noqa: E402
-from gentlerl.envs.hand import CALIBRATIONS, Explore, Fragile, HandPhysics, Touch  # noqa: E402
-from gentlerl.envs.sim_driver import BioTacModel, SimulatedDriver  # noqa: E402
-from gentlerl.envs.torchrl_env import HandEnv  # noqa: E402
-from gentlerl.envs.watchdog import ForceWatchdog  # noqa: E402
-
-__all__ = [
-    "CALIBRATIONS",
-    "SUITE",
-    "BioTacModel",
-    "DriverHandEnv",
-    "DriverSpec",
-    "ForceWatchdog",
-    "HandDriver",
-    "HandReading",
-    "SimulatedDriver",
-    "BatchedHandEnv",
-    "TASK_CLASSES",
-    "TASKS",
-    "Explore",
-    "Fragile",
-    "HandEnv",
-    "HandEnvironment",
-    "HandPhysics",
-    "Touch",
-    "make_dm_env",
-    "make_env",
-]
+__getattr__, __dir__, __all__ = lazy_exports(
+    __name__,
+    {
+        "gentlerl.envs.batched": ("BatchedHandEnv",),
+        "gentlerl.envs.driver": ("DriverSpec", "HandDriver", "HandReading"),
+        "gentlerl.envs.driver_env": ("DriverHandEnv",),
+        "gentlerl.envs.environment": ("HandEnvironment",),
+        "gentlerl.envs.factory": ("SUITE", "TASK_CLASSES", "TASKS", "make_dm_env", "make_env"),
+        "gentlerl.envs.hand": ("CALIBRATIONS", "Explore", "Fragile", "HandPhysics", "Touch"),
+        "gentlerl.envs.sim_driver": ("BioTacModel", "SimulatedDriver"),
+        "gentlerl.envs.task_names": ("TASK_NAMES",),
+        "gentlerl.envs.torchrl_env": ("HandEnv",),
+        "gentlerl.envs.watchdog": ("ForceWatchdog",),
+    },
+)

@@ -1,16 +1,15 @@
-"""Training: config, the shared loop (a runner of :mod:`gentlerl.agent`), checkpoints, logging."""
+"""Training: config, the shared loop (a runner of :mod:`gentlerl.agent`), checkpoints, logging.
 
-from gentlerl.training.checkpoint import load_checkpoint, load_policy, save_checkpoint
-from gentlerl.training.config import TrainConfig, make_config, validate
-from gentlerl.training.loop import Trainer, train
+Its names are imported on first use (:mod:`gentlerl.lazy`): reading the config imports no torch.
+"""
 
-__all__ = [
-    "TrainConfig",
-    "Trainer",
-    "load_checkpoint",
-    "load_policy",
-    "make_config",
-    "save_checkpoint",
-    "train",
-    "validate",
-]
+from gentlerl.lazy import lazy_exports
+
+__getattr__, __dir__, __all__ = lazy_exports(
+    __name__,
+    {
+        "gentlerl.training.checkpoint": ("load_checkpoint", "load_policy", "save_checkpoint"),
+        "gentlerl.training.config": ("TrainConfig", "make_config", "validate"),
+        "gentlerl.training.loop": ("Trainer", "train"),
+    },
+)

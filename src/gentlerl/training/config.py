@@ -39,9 +39,9 @@ __all__ = [
 
 
 def _task_names() -> list[str]:
-    from gentlerl.envs import TASKS
+    from gentlerl.envs.task_names import TASK_NAMES
 
-    return list(TASKS)
+    return list(TASK_NAMES)
 
 
 def _variant_names() -> list[str]:
@@ -58,7 +58,12 @@ def _scale_names() -> list[str]:
 class TrainConfig:
     """A training run: what it is (task, variant, seed, scale), where it goes, and its groups."""
 
-    task: str = setting("touch", "the env task", choices=_task_names)
+    task: str = setting(
+        "touch",
+        "the env task (touch: success is a fingerpad press > 5 N, which random actions often "
+        "reach, so the measure is how gently; fragile: also broken by an impact > 3 N)",
+        choices=_task_names,
+    )
     variant: str = setting(
         "r+rf+rsp", "reward components, one critic head each", choices=_variant_names
     )
@@ -223,10 +228,8 @@ def _run_problems(cfg: TrainConfig) -> list[str]:
 def _env_problems(cfg: TrainConfig) -> list[str]:
     """``env.kwargs`` the hand's task accepts (listing the valid ones), ``env.name`` (a known
     external env), ``env.force_adapter``, ``env.observation_keys`` and ``env.force_scale`` (only
-    with an external env; the adapter a known one)."""
-    from gentlerl.envs.external import FORCE_ADAPTERS, check_name
-    from gentlerl.envs.factory import TASKS, env_kwarg_names
-
+    with an external env; the adapter a known one). The env modules (MuJoCo, TorchRL) are
+    imported only to check what needs them: task keywords, an external env."""
     env = cfg.env
     if env.name is None:
         problems = [
@@ -239,7 +242,9 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
                 f"env.force_scale={env.force_scale!r} applies to an external env only "
                 "(set env.name; the hand's touch is in newtons)"
             )
-        if cfg.task in TASKS:
+        if env.kwargs and cfg.task in _task_names():
+            from gentlerl.envs.factory import env_kwarg_names
+
             valid = env_kwarg_names(cfg.task)
             unknown = sorted(set(env.kwargs) - set(valid))
             if unknown:
@@ -247,6 +252,8 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
                     f"env.kwargs {unknown} are not keywords of task {cfg.task!r}; valid: {valid}"
                 )
         return problems
+    from gentlerl.envs.external import FORCE_ADAPTERS, check_name
+
     problems = check_name(env.name)  # the kwargs go to the external env
     if env.force_adapter is not None and env.force_adapter not in FORCE_ADAPTERS:
         problems.append(

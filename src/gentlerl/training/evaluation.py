@@ -51,20 +51,18 @@ def rollout_episodes(
     return out[:episodes]
 
 
-def _any(nxt: TensorDictBase, key: str) -> float:
-    """1.0 / 0.0 whether ``key`` was set at some step; NaN where the env does not write it."""
-    value = nxt.get(key, None)
-    return math.nan if value is None else float(value.any())
+#: The episode outcomes an env may define (the hand's tasks do; an external env may not).
+OUTCOMES = (keys.SUCCESS, keys.BROKEN)
 
 
 def episode_stats(episode: TensorDictBase) -> dict[str, float]:
-    """``success``, ``broken`` (0/1; NaN where the env has no such outcome), ``max_impact`` (N,
-    eq. 1) and the task ``return`` of one ``[T]`` episode of :func:`rollout_episodes` (the env
-    must write ``impact``)."""
+    """``success`` and ``broken`` (1.0 / 0.0 whether set at some step; left out where the env
+    does not write them), ``max_impact`` (N, eq. 1) and the task ``return`` of one ``[T]``
+    episode of :func:`rollout_episodes` (the env must write ``impact``)."""
     nxt = episode.get("next")
+    outcomes = {key: float(nxt.get(key).any()) for key in OUTCOMES if key in nxt.keys()}
     return {
-        "success": _any(nxt, keys.SUCCESS),
-        "broken": _any(nxt, keys.BROKEN),
+        **outcomes,
         "max_impact": float(nxt.get(keys.IMPACT).max()),
         "return": float(nxt.get(keys.REWARD).sum()),
     }
@@ -73,16 +71,14 @@ def episode_stats(episode: TensorDictBase) -> dict[str, float]:
 def summarize_episodes(
     episodes: list[TensorDictBase],
 ) -> tuple[dict[str, float], list[dict[str, float]]]:
-    """The summary (``success_rate``, ``broken_rate``, ``max_impact_mean``, ``return``) and the
-    :func:`episode_stats` of each of ``episodes``."""
+    """The summary (``success_rate`` and ``broken_rate`` where the env defines them,
+    ``max_impact_mean``, ``return``) and the :func:`episode_stats` of each of ``episodes``."""
     per_episode = [episode_stats(e) for e in episodes]
     n = max(len(per_episode), 1)
-    summary = {
-        "success_rate": sum(e["success"] for e in per_episode) / n,
-        "broken_rate": sum(e["broken"] for e in per_episode) / n,
-        "max_impact_mean": sum(e["max_impact"] for e in per_episode) / n,
-        "return": sum(e["return"] for e in per_episode) / n,
-    }
+    defined = [k for k in OUTCOMES if per_episode and all(k in e for e in per_episode)]
+    summary = {f"{k}_rate": sum(e[k] for e in per_episode) / n for k in defined}
+    summary["max_impact_mean"] = sum(e["max_impact"] for e in per_episode) / n
+    summary["return"] = sum(e["return"] for e in per_episode) / n
     return summary, per_episode
 
 
@@ -91,8 +87,8 @@ def evaluate(
 ) -> tuple[dict[str, float], list[dict[str, float]]]:
     """Run ``episodes`` deterministic episodes; ``env`` must write ``impact`` (``ImpactPenalty``).
 
-    Returns the summary (``success_rate``, ``broken_rate``, ``max_impact_mean``, ``return``) and
-    one dict per episode (``success``, ``broken``, ``max_impact`` in N, ``return``); see
+    Returns the summary and one dict per episode of :func:`summarize_episodes` (``success``,
+    ``broken`` where the env defines them, ``max_impact`` in N, ``return``); see
     :func:`rollout_episodes` for how a batched env runs them.
     """
     return summarize_episodes(rollout_episodes(env, actor, episodes, max_steps))
@@ -100,13 +96,12 @@ def evaluate(
 
 def rank(result: dict[str, float]) -> tuple[float, float, float]:
     """Order of evaluations: higher success rate, then lower broken rate, then lower mean max
-    impact (the gentler of two equally successful policies). An env without success (NaN
-    rates) is judged by its return: higher return, then lower mean max impact."""
-    if math.isnan(result["success_rate"]):
-        broken = result["broken_rate"]
-        return (
-            result["return"],
-            0.0 if math.isnan(broken) else -broken,
-            -result["max_impact_mean"],
-        )
-    return (result["success_rate"], -result["broken_rate"], -result["max_impact_mean"])
+    impact (the gentler of two equally successful policies). An env without success (no rate;
+    NaN in the evaluations of runs saved before) is judged by its return: higher return, then
+    lower broken rate where it has one, then lower mean max impact."""
+    success = result.get("success_rate", math.nan)
+    broken = result.get("broken_rate", math.nan)
+    broken = 0.0 if math.isnan(broken) else broken
+    if math.isnan(success):
+        return (result["return"], -broken, -result["max_impact_mean"])
+    return (success, -broken, -result["max_impact_mean"])

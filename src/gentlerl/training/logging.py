@@ -8,7 +8,6 @@ scalar under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames
 from __future__ import annotations
 
 import csv
-import math
 import os
 import time
 from collections import deque
@@ -25,7 +24,9 @@ from tqdm.auto import tqdm
 
 from gentlerl import keys
 from gentlerl.config.layout import LOGS, RunLayout
+from gentlerl.training.evaluation import OUTCOMES
 
+#: The columns of an episodes CSV; ``success`` and ``broken`` only where the env defines them.
 EVAL_COLUMNS = ("frames", "episode", "success", "broken", "max_impact", "return")
 
 
@@ -96,28 +97,24 @@ class RunLogger:
 
     def log_eval_episodes(self, frames: int, episodes: list[dict[str, float]]) -> None:
         path = self.layout.eval_episodes
+        header, rows = episode_table(frames, episodes)
         new = not path.exists()
         with path.open("a", newline="") as f:
             writer = csv.writer(f)
             if new:
-                writer.writerow(EVAL_COLUMNS)
-            for i, ep in enumerate(episodes):
-                writer.writerow(
-                    [
-                        frames,
-                        i,
-                        outcome(ep["success"]),
-                        outcome(ep["broken"]),
-                        ep["max_impact"],
-                        ep["return"],
-                    ]
-                )
+                writer.writerow(header)
+            writer.writerows(rows)
 
 
-def outcome(value: float) -> int | str:
-    """A 0/1 outcome as a CSV cell: ``nan`` where the env has no such outcome (an external env
-    without ``success`` / ``broken``), which ``numpy.genfromtxt`` reads back as NaN."""
-    return "nan" if math.isnan(value) else int(value)
+def episode_table(frames: int, episodes: Sequence[Mapping[str, float]]) -> tuple[list, list]:
+    """The header and rows of an episodes CSV (:data:`EVAL_COLUMNS` less the outcomes the
+    episodes do not have: an external env without ``success`` / ``broken``), outcomes as 0/1."""
+    columns = [c for c in EVAL_COLUMNS[2:] if episodes and c in episodes[0]]
+    rows = [
+        [frames, i, *(int(ep[c]) if c in OUTCOMES else ep[c] for c in columns)]
+        for i, ep in enumerate(episodes)
+    ]
+    return ["frames", "episode", *columns], rows
 
 
 #: What :func:`episode_transforms` write (at the root and under ``"next"``); read, then dropped.
@@ -188,23 +185,31 @@ class EpisodeStats:
         return finished
 
 
+def force_unit(force_scale: float = 1.0) -> str:
+    """The unit of reported forces and impacts: N, or with an external env's ``env.force_scale``
+    the scaled unit (0.01: ``100 N``)."""
+    return "N" if force_scale == 1.0 else f"{1.0 / force_scale:g} N"
+
+
 def progress_postfix(
-    recent: Sequence[Mapping[str, float]], eval_history: Sequence[Mapping[str, float]]
+    recent: Sequence[Mapping[str, float]],
+    eval_history: Sequence[Mapping[str, float]],
+    unit: str = "N",
 ) -> dict[str, str]:
-    """The progress bar's fields: the mean success (or return) and max impact of the ``recent``
-    training episodes, and the last evaluation's success rate (or return)."""
+    """The progress bar's fields: the mean success (or return) and max impact (in ``unit``) of
+    the ``recent`` training episodes, and the last evaluation's success rate (or return)."""
 
     def mean(name: str) -> float:
         return float(np.mean([e[name] for e in recent])) if recent else 0.0
 
     # Without success in the env (an external env), the bar shows the returns instead.
     judged = "success" if not recent or "success" in recent[-1] else "return_reward"
-    metric = "success_rate" if judged == "success" else "return"
-    last = eval_history[-1][metric] if eval_history else None
+    last = dict(eval_history[-1]) if eval_history else {}
+    shown = last.get("success_rate", last.get("return"))
     return {  # the speed is tqdm's own frame/s: one speed on the bar
         judged.removeprefix("return_"): f"{mean(judged):.2f}",
-        "max_impact": f"{mean('max_impact'):.2f}N",
-        "eval": "-" if last is None else f"{last:.2f}",
+        "max_impact": f"{mean('max_impact'):.2f} {unit}",
+        "eval": "-" if shown is None else f"{shown:.2f}",
     }
 
 
@@ -212,8 +217,11 @@ class Progress:
     """The loop's progress: the statistics of the episodes it collects (the last 20 kept for the
     bar), its env steps per second, and its tqdm bar (shown with ``enabled``)."""
 
-    def __init__(self, reward_keys: list[str], total: int, frames: int, enabled: bool) -> None:
+    def __init__(
+        self, reward_keys: list[str], total: int, frames: int, enabled: bool, unit: str = "N"
+    ) -> None:
         self.episodes = EpisodeStats(reward_keys)
+        self.unit = unit
         self.recent: deque[dict[str, float]] = deque(maxlen=20)
         self.bar = tqdm(total=total, initial=frames, disable=not enabled, unit="frame")
         self._start, self._start_frames = time.perf_counter(), frames
@@ -230,7 +238,7 @@ class Progress:
 
     def advance(self, batch_frames: int, eval_history: Sequence[Mapping[str, float]]) -> None:
         self.bar.update(batch_frames)
-        self.bar.set_postfix(progress_postfix(self.recent, eval_history))
+        self.bar.set_postfix(progress_postfix(self.recent, eval_history, self.unit))
 
     def close(self) -> None:
         self.bar.close()

@@ -44,7 +44,7 @@ from gentlerl.training.checkpoint import (
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
-from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger
+from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state, set_rng_state
 
@@ -113,8 +113,9 @@ class Trainer:
         cfg, c = self.cfg, self.counters
         next_sync = c["updates"] + cfg.collector.weight_sync_every
         progress = Progress(
-            self.rewards.reward_keys, cfg.collector.total_frames, c["frames"], cfg.logging.progress
-        )
+            self.rewards.reward_keys, cfg.collector.total_frames, c["frames"], cfg.logging.progress,
+            force_unit(cfg.env.force_scale),
+        )  # fmt: skip
         pending: dict[str, list[float]] = defaultdict(list)
         for batch in collector:
             batch = self._rewarded(batch)

@@ -56,12 +56,14 @@ class TransitionTransform(Transform):
         next_tensordict.update(self.compute(tensordict, next_tensordict))
         return tensordict
 
-    def read(self, tensordict: TensorDictBase, key: Any) -> torch.Tensor:
-        """``tensordict[key]``, or a ``ValueError`` naming the missing key and the ones there."""
+    def read(self, tensordict: TensorDictBase | Composite, key: Any) -> Any:
+        """``tensordict[key]`` (or a spec's entry), else a ``ValueError`` naming the missing key
+        and the ones there."""
         value = tensordict.get(key, None)
         if value is None:
+            where = "env's spec" if isinstance(tensordict, Composite) else "tensordict"
             raise ValueError(
-                f"{type(self).__name__} reads {key!r}, which the tensordict lacks; it has "
+                f"{type(self).__name__} reads {key!r}, which the {where} lacks; it has "
                 f"{sorted(map(str, tensordict.keys()))} (set in_keys to the env's key)"
             )
         return value

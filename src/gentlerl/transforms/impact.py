@@ -53,11 +53,12 @@ class ImpactPenalty(TransitionTransform):
         self.scalar_out_keys = (out_keys[1],)
 
     def observation_out_shapes(self, observation_spec: Composite) -> dict[str, tuple[int, ...]]:
-        force_shape = observation_spec[self.in_keys[0]].shape[len(observation_spec.shape) :]
+        force_spec = self.read(observation_spec, self.in_keys[0])
+        force_shape = force_spec.shape[len(observation_spec.shape) :]
         return {self.out_keys[0]: tuple(force_shape[:-1])}
 
     def reset_outputs(self, tensordict_reset: TensorDictBase) -> dict[str, torch.Tensor]:
-        force = tensordict_reset.get(self.in_keys[0])
+        force = self.read(tensordict_reset, self.in_keys[0])
         return {self.out_keys[0]: force.new_zeros(force.shape[:-1])}
 
     def compute(

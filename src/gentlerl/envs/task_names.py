@@ -1,0 +1,7 @@
+"""The hand tasks' names, importing nothing: what ``--help`` and the config checks list.
+
+:data:`~gentlerl.envs.factory.TASK_CLASSES` maps the same names, in this order, to their classes
+(a test checks that they agree); reading them there would import MuJoCo and dm_control.
+"""
+
+TASK_NAMES: tuple[str, ...] = ("explore", "touch", "fragile")

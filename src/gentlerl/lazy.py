@@ -1,0 +1,34 @@
+"""Package namespaces whose modules are imported on first use (PEP 562 ``__getattr__``).
+
+``gentlerl train --help``, config checks and refusals read names and settings only; importing a
+package must not import torch, TorchRL or MuJoCo (seconds) before a command needs them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+
+def lazy_exports(
+    package: str, exports: Mapping[str, Sequence[str]]
+) -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
+    """``(__getattr__, __dir__, __all__)`` of ``package`` exporting ``exports``' names
+    (``{module: (name, ...)}``), each module imported when one of its names is first read.
+    A package's ``__init__`` assigns them: ``__getattr__, __dir__, __all__ = lazy_exports(...)``.
+    """
+    owner = {name: module for module, names in exports.items() for name in names}
+
+    def __getattr__(name: str) -> Any:
+        if name not in owner:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(owner[name]), name)
+        setattr(sys.modules[package], name, value)  # later reads skip this hook
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted({*vars(sys.modules[package]), *owner})
+
+    return __getattr__, __dir__, sorted(owner)
