@@ -154,3 +154,18 @@ def test_readme_finger_block_builds_a_float32_env_with_force_in_newtons():
     torch.testing.assert_close(rollout[keys.OBSERVATION], obs)
     expected = impact_penalty(impact(rollout[FORCE], rollout["next", FORCE]), 2.0, 2.0)
     torch.testing.assert_close(rollout["next", keys.PENALTY], expected.unsqueeze(-1))
+
+
+def test_the_first_screen_numbers_stand_in_the_files_they_cite():
+    """Each number of the README's measured table appears in the file its row names."""
+    lines = README.read_text().splitlines()
+    rows = [ln for ln in lines if ln.startswith("| ") and ln.rstrip(" |").endswith(".md")]
+    assert len(rows) >= 4, "the README's measured table is gone"
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        source = (README.parent / cells[-1]).read_text()
+        numbers = re.findall(r"\d+\.\d+", " ".join(cells[1:-1]))
+        assert numbers, row
+        for number in numbers:
+            assert number in source, f"{number} of {cells[0]!r} is not in {cells[-1]}"
+    assert len(README.read_text().splitlines()) < 300  # a README, not a lab notebook
