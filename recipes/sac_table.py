@@ -42,6 +42,12 @@ def verdict(task: str, r: dict, rsp: dict) -> str:
     if r["mean_success"] < 0.5 and rsp["mean_success"] < 0.5:
         return "SAC does not learn the task at this budget"
     success = rsp["mean_success"] >= max(0.8 * r["mean_success"], 0.5)
+    if math.isnan(r["successful_impact"]):  # added after the first runs: r never succeeded
+        return (
+            "more successful than r, which never succeeds; impacts not comparable"
+            if success
+            else "neither variant succeeds often enough to compare impacts"
+        )
     impact = rsp["successful_impact"] <= 0.75 * r["successful_impact"]
     words = (
         "gentleness transfers"

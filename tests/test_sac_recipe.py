@@ -64,3 +64,7 @@ def test_the_table_applies_the_preregistered_verdicts():
     assert table.verdict("fragile", weak, {"mean_success": 0.9, "successful_impact": 2.0}) == (
         "gentleness transfers; helps on the fragile block"
     )
+    never = {"mean_success": 0.0, "successful_impact": float("nan")}
+    assert table.verdict("touch", never, {"mean_success": 1.0, "successful_impact": 2.5}) == (
+        "more successful than r, which never succeeds; impacts not comparable"
+    )
