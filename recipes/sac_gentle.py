@@ -8,7 +8,7 @@ lines marked ``# gentlerl``: the variant's rewards from the env's specs, their s
 per SAC update. ``variant=r`` runs plain SAC on the task reward (the components are still
 logged, ``r`` sums the task reward alone).
 
-Writes ``run_dir/final_eval.json``: the final actor's deterministic episodes on a held-out seed,
+Writes ``run_dir/actor.pt`` (the final actor's state dict) and ``run_dir/final_eval.json``: the final actor's deterministic episodes on a held-out seed,
 as ``gentlerl evaluate --episodes 20 --seed 0`` measures a D4PG run (success, broken rate,
 median / p90 max impact in N), and ``run_dir/evals.csv``, the in-loop evaluations.
 """
@@ -189,6 +189,9 @@ def train(cfg: SACConfig) -> dict[str, float]:
         "final_alpha": float(loss.log_alpha.exp()),  # the entropy temperature it ended at
         **final_evaluation(model[0], cfg),
     }
+    policy = run_dir / "actor.pt.tmp"  # the final actor, for later evaluations
+    torch.save(model[0].state_dict(), policy)
+    policy.replace(run_dir / "actor.pt")
     tmp = run_dir / "final_eval.json.tmp"
     tmp.write_text(json.dumps({"config": asdict(cfg), **result}, indent=1) + "\n")
     tmp.replace(run_dir / "final_eval.json")

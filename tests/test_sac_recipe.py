@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
@@ -33,6 +34,8 @@ def test_a_tiny_sac_run_updates_the_models_with_the_learner_and_writes_its_evalu
     written = json.loads((tmp_path / "final_eval.json").read_text())
     assert written["config"]["variant"] == "r+rf+rsp" and written["episodes"] == 2
     assert 0.0 <= written["success_rate"] <= 1.0 and written["median_max_impact"] >= 0.0
+    actor = sac.make_sac_agent(sac.make_env_and_rewards(cfg)[0], cfg.hidden)[0]
+    actor.load_state_dict(torch.load(tmp_path / "actor.pt"))  # the final actor, reloadable
     rows = (tmp_path / "evals.csv").read_text().splitlines()
     assert rows[0].startswith("frames,") and [r.split(",")[0] for r in rows[1:]] == ["400", "800"]
 
