@@ -153,6 +153,7 @@ def train(cfg: SACConfig) -> dict[str, float]:
         frames_per_batch=cfg.frames_per_batch,
         total_frames=cfg.total_frames,
         init_random_frames=cfg.init_random_frames,
+        auto_register_policy_transforms=False,  # the actor is stateless: nothing to register
     )
     eval_env = make_eval_env(lambda: make_env(cfg.task), cfg.seed + EVAL_SEED_OFFSET)
     frames, credit, evals = 0, 0.0, []
@@ -186,7 +187,7 @@ def train(cfg: SACConfig) -> dict[str, float]:
     result = {
         "updates": rewards.num_updates,
         "frames": frames,
-        "final_alpha": float(loss.log_alpha.exp()),  # the entropy temperature it ended at
+        "final_alpha": loss.log_alpha.exp().item(),  # the entropy temperature it ended at
         **final_evaluation(model[0], cfg),
     }
     policy = run_dir / "actor.pt.tmp"  # the final actor, for later evaluations
