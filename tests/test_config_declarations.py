@@ -50,7 +50,11 @@ def test_the_config_package_imports_nothing_else_of_gentlerl():
     [
         ("collector.frames_per_batch", -3, "collector.frames_per_batch=-3 must be in [1, 100000]"),
         ("collector.sigma", -0.5, "collector.sigma=-0.5 must be >= 0"),
-        ("collector.memory_per_worker_gb", 0.0, "collector.memory_per_worker_gb=0.0 must be in (0, 1024]"),
+        (
+            "collector.memory_per_worker_gb",
+            0.0,
+            "collector.memory_per_worker_gb=0.0 must be in (0, 1024]",
+        ),
         ("gentleness.lr_model", -1e-3, "gentleness.lr_model=-0.001 must be > 0"),
         ("replay.beta", 1.5, "replay.beta=1.5 must be in [0, 1]"),
         ("learner.gamma", 0.0, "learner.gamma=0.0 must be in (0, 1]"),
@@ -202,6 +206,9 @@ def test_the_ray_rules_have_one_source_for_the_config_and_the_collector():
     with pytest.raises(ValueError, match=r"collector.cpus_per_worker=0 must be in \(0, 256\]"):
         make_ray_collector([object] * 2, None, frames_per_batch=100, total_frames=300,
                            init_random_frames=0, cpus_per_worker=0)  # fmt: skip
-    with pytest.raises(ValueError, match=r"collector.ray_address='ray://head:x': port 'x' is not a number in \[1, 65535\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"collector.ray_address='ray://head:x': port 'x' is not a number in \[1, 65535\]",
+    ):
         make_ray_collector([object] * 2, None, frames_per_batch=100, total_frames=300,
                            init_random_frames=0, address="ray://head:x")  # fmt: skip
