@@ -80,9 +80,9 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
             f"{ckpt} holds an actor only (a best_policy.pt or an exported policy): the critics "
             "are in the run's checkpoint.pt"
         )
+    cfg, _ = policy_from_state(state, ckpt)  # its config checked first: sizes within bounds
     env = None
     try:
-        cfg, _ = policy_from_state(state, ckpt)
         env = default_env_factory(cfg)()  # the run's own env (the hand, or an external one)
         builder = AgentBuilder(cfg, env)
         learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()

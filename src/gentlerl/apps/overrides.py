@@ -59,7 +59,7 @@ def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:
         if type(cause).__name__ == "ValidationError":
             return f"{item} must be {describe_type(hints[field])}"
         return f"{item}: {_first_line(cause)}"
-    bad = next((a for a in overrides if _unreadable(a)), None)
+    bad = next((getattr(e, "override", None) for e in _chain(err) if hasattr(e, "override")), None)
     return f"{bad}: {_first_line(err)}" if bad else _first_line(err)
 
 
@@ -75,17 +75,3 @@ def _chain(err: BaseException) -> list[BaseException]:
 def _first_line(err: BaseException) -> str:
     lines = [line.strip() for line in str(err).splitlines() if line.strip()]
     return lines[0] if lines else type(err).__name__
-
-
-def _unreadable(override: str) -> bool:
-    """Whether hydra's override grammar cannot read ``override`` (a flag is not an override)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.errors import OverrideParseException
-
-    if override.startswith("-"):
-        return False
-    try:
-        OverridesParser.create().parse_override(override)
-    except OverrideParseException:
-        return True
-    return False
