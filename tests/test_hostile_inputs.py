@@ -945,7 +945,6 @@ def test_a_bracketed_ipv6_ray_address_is_parsed_and_probed():
         ("env.kwargs=5", "env.kwargs=5 must be a mapping"),
         ("resume=1", "resume=1 must be true, false or a string"),
         ("collector.overlap=1", "collector.overlap=1 must be true, false or a string"),
-        ("run_dir=${oc.env:NOPE_UNSET}", "run_dir=${oc.env:NOPE_UNSET}: "),
         ("run_dir=" + "x" * 5000, "(5000 chars): a folder name is 5000 bytes, over 255"),
         ("collector.ray_address=[::1]:1", "collector.ray_address=[::1]:1: "),
         ("seed=[1", "seed=[1: "),
@@ -960,6 +959,24 @@ def test_command_line_errors_are_one_line_naming_the_field_and_the_value(
     assert refusal.startswith("gentlerl train: error: ") and message in refusal
     assert "\n" not in refusal and len(refusal) < 300
     assert capsys.readouterr().err == ""  # hydra printed nothing of its own
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interpolation_that_cannot_resolve_is_one_line(tmp_path):
+    # In a process of its own: an error resolving the config leaves objects that pytest's
+    # capture of this process does not outlive.
+    env = {**os.environ, "GENTLERL_DEBUG": "0"}
+    env.pop("NOPE_UNSET", None)
+    done = subprocess.run(
+        [sys.executable, "-m", "gentlerl", "train", "run_dir=${oc.env:NOPE_UNSET}"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    lines = [line for line in done.stderr.splitlines() if "arn" not in line]  # not warnings
+    assert done.returncode == 1 and lines[-1].startswith(
+        "gentlerl train: error: run_dir=${oc.env:NOPE_UNSET}: "
+    ), done.stderr
+    assert "Environment variable 'NOPE_UNSET' not found" in lines[-1]
+    assert "Traceback" not in done.stderr and "HYDRA_FULL_ERROR" not in done.stderr
     assert list(tmp_path.iterdir()) == []
 
 

@@ -120,7 +120,7 @@ def _app(cfg: DictConfig) -> dict[str, float]:
         with sigterm_as_interrupt():  # SIGTERM stops a run as Ctrl-C does
             summary = train(config_from_hydra(cfg))
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
-        raise SystemExit(str(err)) from None
+        refusal = str(err)
     except Exception as err:  # noqa: BLE001 - a refusal is one line; GENTLERL_DEBUG=1: traceback
         if debugging():
             raise
@@ -128,10 +128,13 @@ def _app(cfg: DictConfig) -> dict[str, float]:
         if interrupt is not None:  # Ctrl-C that surfaced as another error inside a library
             raise interrupt from None
         if isinstance(err, OmegaConfBaseException):  # resolving an interpolation
-            message = hydra_error_line(err, sys.argv[1:])
+            refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
         else:
-            message = one_line(err)
-        raise SystemExit(f"gentlerl train: error: {message}") from None
+            refusal = f"gentlerl train: error: {one_line(err)}"
+    else:
+        refusal = None
+    if refusal is not None:  # raised here, holding no reference to the error and its frames
+        raise SystemExit(refusal)
     print(" ".join(f"{k}={v:.3f}" for k, v in summary.items()))
     return summary
 
@@ -151,20 +154,23 @@ def main() -> None:
     os.environ[_FULL_ERROR] = "1"  # hydra raises its errors instead of printing them
     try:
         _app()
+        refusal = None
     except Exception as err:  # noqa: BLE001 - hydra's errors (composing the config) are refusals
         if debugging():
             raise
-        raise SystemExit(f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}") from None
+        refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
     except KeyboardInterrupt as interrupt:
         if debugging():
             raise
         print("gentlerl train: interrupted", file=sys.stderr)
-        raise SystemExit(exit_status(interrupt)) from None
+        refusal = exit_status(interrupt)
     finally:
         if full_error is None:
             os.environ.pop(_FULL_ERROR, None)
         else:
             os.environ[_FULL_ERROR] = full_error
+    if refusal is not None:  # raised here, holding no reference to the error and its frames
+        raise SystemExit(refusal)
 
 
 #: Set, hydra raises the errors of composing a config instead of printing several lines.
