@@ -946,7 +946,7 @@ def test_a_bracketed_ipv6_ray_address_is_parsed_and_probed():
         ("resume=1", "resume=1 must be true, false or a string"),
         ("collector.overlap=1", "collector.overlap=1 must be true, false or a string"),
         ("run_dir=" + "x" * 5000, "(5000 chars): a folder name is 5000 bytes, over 255"),
-        ("collector.ray_address=[::1]:1", "collector.ray_address=[::1]:1: "),
+        ("collector.ray_address=[::1]:1", "a string: collector.ray_address='[::1]:1')"),
         ("seed=[1", "seed=[1: "),
         ("+seed=1", "Could not append to config"),
     ],

@@ -38,14 +38,17 @@ def interrupted(err: BaseException) -> KeyboardInterrupt | None:
     """The Ctrl-C (or :class:`Terminated`) that ``err`` is or was raised while handling, else
     ``None`` (a ``KeyboardInterrupt`` that struck inside library code can surface as another
     error: it must still read as one)."""
-    seen: set[int] = set()
+    return next((e for e in causes(err) if isinstance(e, KeyboardInterrupt)), None)
+
+
+def causes(err: BaseException) -> list[BaseException]:
+    """``err``, then the error it was raised from or while handling, and so on."""
+    chain: list[BaseException] = []
     current: BaseException | None = err
-    while current is not None and id(current) not in seen:
-        if isinstance(current, KeyboardInterrupt):
-            return current
-        seen.add(id(current))
+    while current is not None and all(current is not seen for seen in chain):
+        chain.append(current)
         current = current.__cause__ or current.__context__
-    return None
+    return chain
 
 
 class Terminated(KeyboardInterrupt):

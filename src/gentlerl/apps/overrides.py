@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
+from gentlerl.apps.errors import causes
 from gentlerl.config.fields import describe_type, field_hints
 from gentlerl.config.groups import GROUPS
 from gentlerl.training.config import TrainConfig
@@ -51,7 +52,7 @@ def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:
     for anything else."""
     hints = field_hints(TrainConfig)
     given = {a.partition("=")[0].lstrip("+"): a for a in overrides if "=" in a}
-    for cause in _chain(err):
+    for cause in causes(err):
         field = re.sub(r"\[\d+\]$", "", str(getattr(cause, "full_key", "") or ""))
         if field not in hints:
             continue
@@ -59,17 +60,11 @@ def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:
         if type(cause).__name__ == "ValidationError":
             return f"{item} must be {describe_type(hints[field])}"
         return f"{item}: {_first_line(cause)}"
-    bad = next((getattr(e, "override", None) for e in _chain(err) if hasattr(e, "override")), None)
-    return f"{bad}: {_first_line(err)}" if bad else _first_line(err)
-
-
-def _chain(err: BaseException) -> list[BaseException]:
-    chain: list[BaseException] = []
-    current: BaseException | None = err
-    while current is not None and current not in chain:
-        chain.append(current)
-        current = current.__cause__ or current.__context__
-    return chain
+    bad = next((getattr(e, "override", None) for e in causes(err) if hasattr(e, "override")), None)
+    if bad is None:
+        return _first_line(err)
+    key, _, value = bad.partition("=")
+    return f"{bad}: {_first_line(err)} (a value hydra's grammar cannot read; a string: {key}='{value}')"
 
 
 def _first_line(err: BaseException) -> str:

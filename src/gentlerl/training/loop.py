@@ -52,7 +52,8 @@ from gentlerl.training.seeding import rng_state, set_rng_state
 
 
 class Trainer:
-    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train`."""
+    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train` (which passes
+    the env it probed as ``probe``; without one the env is probed here)."""
 
     def __init__(
         self, cfg: TrainConfig, env_factory: EnvFactory | None = None, probe: EnvBase | None = None
