@@ -49,15 +49,19 @@ def test_the_config_package_imports_nothing_else_of_gentlerl():
 @pytest.mark.parametrize(
     ("name", "value", "message"),
     [
-        ("collector.frames_per_batch", -3, "collector.frames_per_batch=-3 must be >= 1"),
+        ("collector.frames_per_batch", -3, "collector.frames_per_batch=-3 must be in [1, 100000]"),
         ("collector.sigma", -0.5, "collector.sigma=-0.5 must be >= 0"),
-        ("collector.memory_per_worker_gb", 0.0, "collector.memory_per_worker_gb=0.0 must be > 0"),
+        (
+            "collector.memory_per_worker_gb",
+            0.0,
+            "collector.memory_per_worker_gb=0.0 must be in (0, 1024]",
+        ),
         ("gentleness.lr_model", -1e-3, "gentleness.lr_model=-0.001 must be > 0"),
         ("replay.beta", 1.5, "replay.beta=1.5 must be in [0, 1]"),
         ("learner.gamma", 0.0, "learner.gamma=0.0 must be in (0, 1]"),
-        ("num_threads", 0, "num_threads=0 must be >= 1"),
+        ("num_threads", 0, "num_threads=0 must be in [1, 256]"),
         ("network.dense_reward_bound", 0.0, "network.dense_reward_bound=0.0 must be > 0 (or null)"),
-        ("collector.env_threads", 0, "collector.env_threads=0 must be >= 1 (or null)"),
+        ("collector.env_threads", 0, "collector.env_threads=0 must be in [1, 256] (or null)"),
     ],
 )
 def test_a_fields_declared_range_gives_the_message_naming_it_and_its_bound(name, value, message):
@@ -103,20 +107,59 @@ OLD_RANGES = {
 }
 
 
+#: The largest value of every size (issue 32: none unbounded; what each allows is in groups.py),
+#: declared as the top of its field's range.
+SIZE_LIMITS = {
+    "num_threads": 256, "collector.num_workers": 512, "collector.cpus_per_worker": 256,
+    "collector.memory_per_worker_gb": 1024, "collector.num_envs": 256,
+    "collector.env_threads": 256, "collector.total_frames": 10**10,
+    "collector.frames_per_batch": 100_000, "collector.init_random_frames": 10**10,
+    "replay.buffer_size": 10**7, "replay.batch_size": 65536, "replay.n_steps": 100,
+    "network.actor_hidden": 4096, "network.critic_hidden": 4096, "network.num_atoms": 1001,
+    "gentleness.ensemble_size": 32, "gentleness.model_hidden": 2048,
+    "gentleness.model_batch_size": 65536, "gentleness.model_buffer_size": 10**7,
+    "logging.eval_episodes": 256,
+}  # fmt: skip
+#: Ranges that end at a number that is not a size (a share, a discount).
+_NOT_SIZES = ("replay.alpha", "replay.beta", "learner.gamma")
+
+
+def _declared() -> dict[str, Range]:
+    return {n: f.metadata["bounds"] for n, f in iter_fields(TrainConfig) if f.metadata["bounds"]}
+
+
 def test_the_declared_ranges_are_the_ones_validate_checked_before():
-    declared = {name: f.metadata["bounds"] for name, f in iter_fields(TrainConfig)}
-    assert {name: b.text for name, b in declared.items() if b is not None} == OLD_RANGES
+    """The bottoms are those of the hand-written lists; the tops those of :data:`SIZE_LIMITS`."""
+    low = {n: (b.low, b.low_open) for n, b in _declared().items() if n not in SIZE_LIMITS}
+    old = {n: (r.low, r.low_open) for n, r in map(lambda n: (n, Range.parse(OLD_RANGES[n])), low)}
+    assert set(_declared()) == set(OLD_RANGES) | {"network.actor_hidden", "network.critic_hidden"}
+    assert low == old
+    top = {n: b.high for n, b in _declared().items() if b.high < float("inf")}
+    assert {n: v for n, v in top.items() if n not in _NOT_SIZES} == SIZE_LIMITS
+
+
+def _overrides(name: str, value: object) -> dict:
+    group, _, field = name.rpartition(".")
+    return {group: {field: value}} if group else {field: value}
 
 
 @pytest.mark.parametrize("name", sorted(OLD_RANGES))
 def test_a_value_just_outside_a_declared_range_is_refused(name):
-    bounds = Range.parse(OLD_RANGES[name])
+    bounds = _declared()[name]
     outside = int(bounds.low if bounds.low_open else bounds.low - 1)  # an int fits float fields
-    group, _, field = name.rpartition(".")
-    overrides = {group: {field: outside}} if group else {field: outside}
     with pytest.raises(ValueError) as err:
-        make_config(**overrides)
+        make_config(**_overrides(name, outside))
     assert f"{name}={outside} must be {bounds.describe()}" in str(err.value)
+
+
+@pytest.mark.parametrize("name", sorted(SIZE_LIMITS))
+def test_a_size_just_past_its_limit_is_refused_naming_the_limit(name):
+    bounds, above = _declared()[name], int(SIZE_LIMITS[name]) + 1
+    value = [above] if name.endswith("_hidden") and "model" not in name else above
+    with pytest.raises(ValueError) as err:
+        make_config(**_overrides(name, value))
+    shown = f"{name}={value}: each value" if isinstance(value, list) else f"{name}={value}"
+    assert f"{shown} must be {bounds.describe()}" in str(err.value)
 
 
 def test_a_new_declaration_is_checked_without_being_listed():
@@ -161,9 +204,12 @@ def test_the_ray_rules_have_one_source_for_the_config_and_the_collector():
         make_ray_collector([object] * 3, None, frames_per_batch=100, total_frames=300,
                            init_random_frames=0)  # fmt: skip
     assert problem in str(err.value)
-    with pytest.raises(ValueError, match="collector.cpus_per_worker=0 must be > 0"):
+    with pytest.raises(ValueError, match=r"collector.cpus_per_worker=0 must be in \(0, 256\]"):
         make_ray_collector([object] * 2, None, frames_per_batch=100, total_frames=300,
                            init_random_frames=0, cpus_per_worker=0)  # fmt: skip
-    with pytest.raises(ValueError, match="port 'x' is not a number"):
+    with pytest.raises(
+        ValueError,
+        match=r"collector.ray_address='ray://head:x': port 'x' is not a number in \[1, 65535\]",
+    ):
         make_ray_collector([object] * 2, None, frames_per_batch=100, total_frames=300,
                            init_random_frames=0, address="ray://head:x")  # fmt: skip

@@ -73,6 +73,19 @@ class ScriptedTouchEnv(EnvBase):
         torch.manual_seed(seed or 0)
 
 
+class ContactEnv(ScriptedTouchEnv):
+    """:class:`ScriptedTouchEnv` with its reading also as ``contact`` [2, 1], in the layout the
+    rewards read."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.observation_spec["contact"] = Unbounded((2, 1), dtype=torch.float64)
+
+    def _obs(self) -> dict[str, torch.Tensor]:
+        obs = super()._obs()
+        return {**obs, "contact": obs[keys.TOUCH].unsqueeze(-1)}
+
+
 def test_finger_spin_env_is_float32_with_force_in_newtons_and_a_flat_observation():
     env = make_external_env("dm_control:finger-spin", seed=0)
     check_env_specs(env)
@@ -132,10 +145,13 @@ def test_force_scale_changes_the_unit_of_the_force_the_rewards_read_not_the_obse
     # the observation keeps the env's own reading, log1p of newtons
     torch.testing.assert_close(td["next", "touch"][1], torch.log1p(torch.tensor([3.0, 4.0])))
     # also where the force is one of the env's own observation entries (adapter "none")
-    own = adapt_env(ScriptedTouchEnv(), force_adapter="none", force_key="touch", force_scale=0.5)
+    own = adapt_env(
+        ContactEnv(), force_adapter="none", force_key="contact",
+        observation_keys=["position", "touch"], force_scale=0.5,
+    )  # fmt: skip
     step = own.rollout(3)["next"][1]
     torch.testing.assert_close(step[keys.OBSERVATION][-2:], torch.log1p(torch.tensor([3.0, 4.0])))
-    torch.testing.assert_close(step["touch"], 0.5 * torch.log1p(torch.tensor([3.0, 4.0])))
+    torch.testing.assert_close(step["contact"][:, 0], 0.5 * torch.log1p(torch.tensor([3.0, 4.0])))
     cfg = make_config(env={"name": "dm_control:finger-spin", "force_scale": 0.01})
     torch.manual_seed(1)
     scaled = default_env_factory(cfg)().rollout(300)
@@ -156,8 +172,11 @@ def test_adapter_errors_name_what_is_missing():
         adapt_env(ScriptedTouchEnv(), force_adapter="nope")
     with pytest.raises(ValueError, match=r"observation key\(s\) \['speed'\]"):
         adapt_env(ScriptedTouchEnv(), observation_keys=["speed"])
-    with pytest.raises(ValueError, match="force key 'force' is not written"):
+    with pytest.raises(ValueError, match=r"force key 'force' \(env.force_key\) is not written"):
         adapt_env(ScriptedTouchEnv(), force_adapter="none")
+    # an entry without its channel dim: [2], not [n_sites, n_channels]
+    with pytest.raises(ValueError, match=r"force key 'touch' \(env.force_key\) has shape \[2\]"):
+        adapt_env(ScriptedTouchEnv(), force_adapter="none", force_key="touch")
     assert set(FORCE_ADAPTERS) >= {"dm_control_touch", "none"}
 
 

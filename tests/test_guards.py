@@ -7,10 +7,8 @@ from pathlib import Path
 import pytest
 import torch
 import yaml
-from omegaconf import OmegaConf
 
 from gentlerl import keys
-from gentlerl.apps.train import train_in
 from gentlerl.training import Trainer, load_checkpoint, train
 from gentlerl.training.guards import (
     NonFiniteError,
@@ -143,13 +141,14 @@ def test_config_changes_compare_leaves_with_tuples_as_lists():
 
 
 def test_a_refused_command_line_run_leaves_no_run_dir(tmp_path):
-    # hydra creates run_dir before the config is checked; the app removes it again.
-    run_dir = tmp_path / "refused"
-    run_dir.mkdir()
-    cfg = OmegaConf.create({"run_dir": str(run_dir), "resume": True})
-    with pytest.raises(ValueError, match="resume=true but there is no checkpoint"):
-        train_in(run_dir, cfg)
-    assert not run_dir.exists()
+    # hydra makes no folder; the trainer makes run_dir (and its parents) only once the config
+    # and the env are checked, and removes what it made when a resume is refused.
+    from gentlerl.cli import main
+
+    run_dir = tmp_path / "a" / "refused"
+    with pytest.raises(SystemExit, match="resume=true but there is no checkpoint"):
+        main(["train", f"run_dir={run_dir}", "resume=true"])
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_checkpoint_older_than_a_field_resumes_with_the_behaviour_of_its_time(done_run, tmp_path):

@@ -4,6 +4,7 @@ must not be, and safety checks that fail closed."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -284,7 +285,7 @@ def test_a_policy_demanding_a_huge_actor_is_refused_before_allocating(tmp_path):
     from gentlerl.training.checkpoint import CheckpointError, load_policy
 
     path = _policy_file(tmp_path, [200000, 200000], [16])
-    with pytest.raises(CheckpointError, match=r"do not match its config .*actor_hidden=\[200000"):
+    with pytest.raises(CheckpointError, match=r"actor_hidden=\[200000, 200000\]: each value must"):
         load_policy(path)
 
 
@@ -722,3 +723,363 @@ def test_a_penalty_model_names_a_missing_or_wrongly_sized_observation():
         )
     with pytest.raises(KeyError, match="'action'"):
         model.predict(TensorDict({"observation": torch.zeros(5, 4)}, [5]))
+
+
+# --- issue 32: no sweep reaches a cluster, every size bounded, one line, checked up front -----
+
+
+@pytest.mark.parametrize(
+    ("parameters", "allowed"),
+    [
+        ("collector.kind: {value: ray}\n  collector.ray_address: {value: evil.example:6379}", None),
+        ("collector.ray_address: {value: evil.example:6379}", "applies to collector.kind=ray only"),
+        ("collector.kind: {values: [single, ray]}", None),
+    ],
+)
+def test_a_sweep_file_cannot_send_its_runs_to_a_ray_cluster(tmp_path, parameters, allowed, capsys):
+    path = _sweep_file(tmp_path, f"parameters:\n  {parameters}\n")
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as err:
+        sweep([path, "--out", str(out), "--dry-run"])
+    message = str(err.value.code)
+    assert "a sweep does not choose where its runs execute" in message and "\n" not in message
+    assert "--allow-ray-collector" in message and "collector." in message
+    assert "gentlerl.apps.train" not in capsys.readouterr().out  # nothing planned
+    assert not out.exists()
+    # the command line may allow it: then the point is planned (once its config is valid)
+    allow = [path, "--out", str(out), "--dry-run", "--allow-ray-collector"]
+    if allowed is None:
+        assert sweep(allow) == 0
+    else:
+        with pytest.raises(SystemExit, match=allowed):
+            sweep(allow)
+
+
+@pytest.mark.parametrize(
+    ("item", "match"),
+    [
+        ("logging.wandb_project=${oc.env:HOME}", "string value may hold only"),
+        ("+env.kwargs.calibration=${oc.env:HOME}", "string value may hold only"),
+        ("collector.kind=ray", "a sweep does not choose where its runs execute"),
+        ("collector.ray_address=evil.example:6379", "a sweep does not choose where"),
+        ("seed=[1", "not a plain number, name or list"),
+        ("seed={a: 1}", "expected a number, a name or a list"),
+    ],
+)
+def test_set_follows_the_sweep_files_rules(tmp_path, item, match):
+    good = _sweep_file(tmp_path, "parameters: {seed: {values: [0]}}\n")
+    with pytest.raises(SystemExit, match=match) as err:
+        sweep([good, "--out", str(tmp_path / "o"), "--set", item, "--dry-run"])
+    assert f"--set {item!r}" in str(err.value.code) and "\n" not in str(err.value.code)
+
+
+def _saved_policy(tmp_path: Path, obs_dim: int, actor: dict) -> Path:
+    from gentlerl.training.checkpoint import save_checkpoint
+    from gentlerl.training.config import preset_config
+
+    path = tmp_path / "policy.pt"
+    config = preset_config().to_dict()
+    save_checkpoint(path, {"config": config, "obs_dim": obs_dim, "action_dim": 20, "actor": actor})
+    return path
+
+
+def test_a_policy_of_expanded_or_oversized_weights_is_refused_before_allocating(tmp_path):
+    from gentlerl.models import make_actor
+    from gentlerl.training.checkpoint import CheckpointError, load_policy
+
+    obs_dim = 50_000_000  # 256 x 50M floats: 51 GB if the actor were built
+    with torch.device("meta"):
+        shapes = {k: v.shape for k, v in make_actor(obs_dim, 20, (256, 256)).state_dict().items()}
+    expanded = {k: torch.zeros(1).expand(*shape) for k, shape in shapes.items()}
+    path = _saved_policy(tmp_path, obs_dim, expanded)
+    assert path.stat().st_size < 100_000  # what the file holds: one float per tensor
+    with pytest.raises(CheckpointError, match=r"is not a dense tensor \(shape \[256, 50000000\]"):
+        load_policy(path)
+    dense = make_actor(10, 20, (256, 256)).state_dict()  # the shapes are compared after the size
+    with pytest.raises(CheckpointError, match=r"would have 12,800,\d{3},\d{3} parameters, more"):
+        load_policy(_saved_policy(tmp_path, obs_dim, dense))
+
+
+@pytest.mark.parametrize(
+    ("group", "name", "value"),
+    [
+        ("network", "critic_hidden", [100000, 100000]),
+        ("gentleness", "ensemble_size", 1000000),
+        ("gentleness", "model_hidden", 1000000),
+    ],
+)
+def test_calibration_refuses_a_checkpoint_of_huge_sizes_before_building(
+    tmp_path, group, name, value
+):
+    from gentlerl.apps.calibration import critic_calibration
+    from gentlerl.models import make_actor
+    from gentlerl.training.checkpoint import save_checkpoint
+    from gentlerl.training.config import preset_config
+
+    config = preset_config().to_dict()
+    config[group][name] = value
+    state = {"config": config, "obs_dim": 63, "action_dim": 20, "learner": {}, "intrinsic": {}}
+    save_checkpoint(tmp_path / "checkpoint.pt", {**state, "actor": make_actor(63, 20).state_dict()})
+    with pytest.raises(
+        ValueError, match=rf"its config is invalid: {group}.{name}=.* must be in \["
+    ):
+        critic_calibration(tmp_path, episodes=1)
+
+
+def _train(args: list[str]) -> str:
+    """``gentlerl train ARGS`` in this process: its refusal (the one line ``SystemExit`` carries)."""
+    from gentlerl.cli import main
+
+    with pytest.raises(SystemExit) as err:
+        main(["train", *args])
+    return str(err.value.code)
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("collector.total_frames=99999999999999999999999", "must be in [1, 10000000000]"),
+        ("network.actor_hidden=[200000,200000]", ": each value must be in [1, 4096]"),
+        ("num_threads=100000", "num_threads=100000 must be in [1, 256]"),
+        ("collector.num_envs=100000", "collector.num_envs=100000 must be in [1, 256]"),
+        ("logging.eval_episodes=100000", "logging.eval_episodes=100000 must be in [0, 256]"),
+        ("gentleness.ensemble_size=1000000", "gentleness.ensemble_size=1000000 must be in [1, 32]"),
+        ("replay.buffer_size=1000000000000", "replay.buffer_size=1000000000000 must be in [1, 1"),
+    ],
+)
+def test_sizes_past_their_limit_are_refused_before_anything_is_written(
+    tmp_path, monkeypatch, override, message
+):
+    monkeypatch.chdir(tmp_path)
+    refusal = _train([override])
+    assert refusal.startswith("gentlerl train: error: invalid training config: ")
+    assert message in refusal and "\n" not in refusal
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_calibration_bounds_its_episodes_and_checks_its_json_before_the_rollouts(tmp_path):
+    from gentlerl.apps.calibration import critic_calibration, main
+
+    with pytest.raises(ValueError, match=r"episodes must be an integer in \[1, 256\]"):
+        critic_calibration(tmp_path / "none", episodes=100000)
+    (tmp_path / "checkpoint.pt").write_bytes(b"")  # never read: the output is checked first
+    with pytest.raises(SystemExit) as err:
+        main([str(tmp_path), "--json", str(tmp_path / "checkpoint.pt" / "x.json")])
+    assert "error: --json " in str(err.value.code) and "is not a directory" in str(err.value.code)
+
+
+@pytest.mark.parametrize(
+    ("env", "match"),
+    [
+        ({"kwargs": {"bogus": 1}}, "env.kwargs.bogus=1 is not a keyword of the env: cannot build"),
+        ({"kwargs": {"frame_skip": 0}}, r"env.kwargs.frame_skip=0 must be an integer >= 1"),
+        ({"kwargs": {"device": "cuda:99"}}, r"env.kwargs.device='cuda:99': this machine's torch"),
+        (
+            {"observation_keys": ["position", "position"]},
+            r"env.observation_keys=\['position', 'position'\] names \['position'\] more than",
+        ),
+        (
+            {"force_adapter": "none", "force_key": "position"},
+            r"force key 'position' \(env.force_key\) has shape \[4\], not the \[n_sites",
+        ),
+    ],
+)
+def test_an_external_envs_settings_are_checked_before_anything_is_written(tmp_path, env, match):
+    from gentlerl.training.config import make_config
+    from gentlerl.training.loop import train
+
+    with pytest.raises(ValueError, match=match) as err:
+        cfg = make_config(
+            variant="r+rf", run_dir=str(tmp_path / "run"),
+            env={"name": "dm_control:finger-spin", **env},
+        )  # fmt: skip
+        train(cfg)
+    assert "\n" not in str(err.value).removeprefix("invalid training config:\n  - ")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_policy_for_another_env_is_refused_naming_both_sizes(tmp_path):
+    from gentlerl.apps.evaluate import evaluate_policy
+
+    path = _policy_file(tmp_path, [16], [16])  # obs_dim 10; the touch hand's observation: 63
+    with pytest.raises(ValueError, match=r"policy.pt: its actor has obs_dim=10, but this env's "):
+        evaluate_policy(path, 1)
+
+
+@pytest.mark.parametrize(
+    ("address", "match"),
+    [
+        ("127.0.0.1:99999", r"port '99999' is not a number in \[1, 65535\]"),
+        ("127.0.0.1:²", r"port '²' is not a number in \[1, 65535\]"),
+        ("http://127.0.0.1:1", "no other scheme"),
+        ("6379", "'6379' is not a host name or an IP address.*a port alone is not an address"),
+        ("999.1.1.1:2", "'999.1.1.1' is not a host name or an IP address"),
+    ],
+)
+def test_ray_addresses_that_are_not_addresses_are_refused_by_the_config(address, match):
+    from gentlerl.training.config import make_config
+
+    with pytest.raises(ValueError, match=f"collector.ray_address='{re.escape(address)}'.*{match}"):
+        make_config(collector={"kind": "ray", "ray_address": address})
+
+
+def test_a_bracketed_ipv6_ray_address_is_parsed_and_probed():
+    from gentlerl.distributed.cluster import ClusterError, check_reachable, parse_address
+
+    assert parse_address("[::1]:1") == ("::1", 1)
+    assert parse_address("ray://head.example") == ("head.example", 10001)
+    with pytest.raises(ClusterError, match=r"cannot reach the Ray cluster at '\[::1\]:1'"):
+        check_reachable("[::1]:1", timeout=2.0)
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        *[
+            (f"collector.total_frames={v}", f"collector.total_frames={v} must be an integer")
+            for v in ("abc", "1.5", "[1,2]", "{a: 1}", "true")
+        ],
+        ("env.force_scale=abc", "env.force_scale=abc must be a finite number"),
+        ("network.actor_hidden=300", "network.actor_hidden=300 must be a list of integers"),
+        ("network.actor_hidden=[a,b]", "network.actor_hidden=[a,b] must be a list of integers"),
+        ("env.kwargs=5", "env.kwargs=5 must be a mapping"),
+        ("resume=1", "resume=1 must be true, false or a string"),
+        ("collector.overlap=1", "collector.overlap=1 must be true, false or a string"),
+        ("run_dir=" + "x" * 5000, "(5000 chars): a folder name is 5000 bytes, over 255"),
+        ("collector.ray_address=[::1]:1", "a string: collector.ray_address='[::1]:1')"),
+        ("seed=[1", "seed=[1: "),
+        ("+seed=1", "Could not append to config"),
+    ],
+)
+def test_command_line_errors_are_one_line_naming_the_field_and_the_value(
+    tmp_path, monkeypatch, capsys, override, message
+):
+    monkeypatch.chdir(tmp_path)
+    refusal = _train([override])
+    assert refusal.startswith("gentlerl train: error: ") and message in refusal
+    assert "\n" not in refusal and len(refusal) < 300
+    assert capsys.readouterr().err == ""  # hydra printed nothing of its own
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interpolation_that_cannot_resolve_is_one_line(tmp_path):
+    # In a process of its own: an error resolving the config leaves objects that pytest's
+    # capture of this process does not outlive.
+    env = {**os.environ, "GENTLERL_DEBUG": "0"}
+    env.pop("NOPE_UNSET", None)
+    done = subprocess.run(
+        [sys.executable, "-m", "gentlerl", "train", "run_dir=${oc.env:NOPE_UNSET}"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    lines = [line for line in done.stderr.splitlines() if "arn" not in line]  # not warnings
+    assert done.returncode == 1 and lines[-1].startswith(
+        "gentlerl train: error: run_dir=${oc.env:NOPE_UNSET}: "
+    ), done.stderr
+    assert "Environment variable 'NOPE_UNSET' not found" in lines[-1]
+    assert "Traceback" not in done.stderr and "HYDRA_FULL_ERROR" not in done.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("~seed", "~seed: a config field cannot be removed"),
+        ("~network", "~network: a config field cannot be removed"),
+        ("hydra.run.dir=X", "hydra.run.dir=X: gentlerl sets hydra's folders from run_dir"),
+        ("hydra.sweep.dir=X", "hydra.sweep.dir=X: gentlerl sets hydra's folders"),
+    ],
+)
+def test_removing_a_field_or_moving_hydras_folder_is_refused(
+    tmp_path, monkeypatch, override, message
+):
+    monkeypatch.chdir(tmp_path)
+    assert message in _train([override])
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--backend", "ray", "--cpus-per-run", "0"], "--cpus-per-run=0.0 must be > 0"),
+        (["--backend", "ray", "--address", "6379"], "--address '6379': '6379' is not a host"),
+        (["--workers", "0"], "--workers=0 must be >= 1"),
+    ],
+)
+def test_sweep_options_are_checked_before_anything_runs(tmp_path, args, message):
+    good = _sweep_file(tmp_path, "parameters: {seed: {values: [0]}}\n")
+    with pytest.raises(SystemExit, match=re.escape(message)):
+        sweep([good, "--out", str(tmp_path / "o"), "--dry-run", *args])
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_ray_address_without_the_ray_collector_is_refused():
+    from gentlerl.training.config import make_config
+
+    with pytest.raises(ValueError, match="collector.ray_address='127.0.0.1:6379' applies to "):
+        make_config(collector={"ray_address": "127.0.0.1:6379"})
+
+
+def _process_run(tmp_path: Path):
+    from gentlerl.training.config import make_config
+
+    from .test_training_loop import TINY, toy_env
+
+    fast = {**TINY["collector"], "overlap": "process", "total_frames": 10**6}
+    logging = {**TINY["logging"], "checkpoint_every_frames": 100, "eval_every_frames": 10**6}
+    cfg = make_config(**{**TINY, "collector": fast, "logging": logging, "run_dir": str(tmp_path)})
+    return cfg, toy_env
+
+
+def _when_checkpointed(run_dir: Path, then) -> threading.Thread:
+    """A thread calling ``then()`` once ``run_dir`` holds a checkpoint (at most 60 s on)."""
+    import time
+
+    def wait() -> None:
+        for _ in range(1200):
+            if (run_dir / "checkpoint.pt").exists():
+                break
+            time.sleep(0.05)
+        then()
+
+    thread = threading.Thread(target=wait, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_sigterm_stops_a_process_collector_run_as_ctrl_c_does(tmp_path):
+    import multiprocessing
+    import signal
+
+    from gentlerl.apps.errors import Terminated, exit_status, sigterm_as_interrupt
+    from gentlerl.training.checkpoint import load_checkpoint
+    from gentlerl.training.loop import train
+
+    cfg, env = _process_run(tmp_path)
+    _when_checkpointed(tmp_path, lambda: os.kill(os.getpid(), signal.SIGTERM))
+    with pytest.raises(Terminated) as err, sigterm_as_interrupt():
+        train(cfg, env)
+    assert exit_status(err.value) == 143 and not multiprocessing.active_children()
+    assert not (tmp_path / ".lock").exists()  # the lock released
+    assert int(load_checkpoint(tmp_path / "checkpoint.pt")["counters"]["frames"]) >= 100
+
+
+def test_a_killed_collector_process_says_what_happened_and_that_resume_continues(tmp_path):
+    import multiprocessing
+    import signal
+
+    from gentlerl.apps.errors import one_line
+    from gentlerl.training.loop import train
+
+    def kill_collector() -> None:
+        for child in multiprocessing.active_children():
+            if child.name == "collector":
+                os.kill(child.pid, signal.SIGKILL)
+
+    cfg, env = _process_run(tmp_path)
+    _when_checkpointed(tmp_path, kill_collector)
+    with pytest.raises(ChildProcessError) as err:
+        train(cfg, env)
+    message = one_line(err.value)
+    assert message.startswith("the collector process was killed by SIGKILL; the last checkpoint")
+    assert message.endswith("is intact: rerun with resume=auto to continue")
+    assert not (tmp_path / ".lock").exists() and not multiprocessing.active_children()

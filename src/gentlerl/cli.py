@@ -14,7 +14,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from gentlerl.apps.errors import DEBUG_ENV, debugging, interrupted, one_line
+from gentlerl.apps.errors import DEBUG_ENV, debugging, exit_status, interrupted, one_line
 
 #: command -> (module with ``main(argv, prog)``, one-line description); ``None``: the hydra app.
 COMMANDS: dict[str, tuple[str | None, str]] = {
@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``gentlerl`` console script; returns the exit status.
 
-    A command that fails prints one line on stderr and exits 1 (130 on Ctrl-C); ``--debug``
+    A command that fails prints one line on stderr and exits 1 (130 on Ctrl-C, 143 on SIGTERM); ``--debug``
     anywhere on the command line (or ``GENTLERL_DEBUG=1``) shows the traceback instead.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -84,9 +84,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - each failure is one line
         if debugging():
             raise
-        if interrupted(err):
+        interrupt = interrupted(err)
+        if interrupt is not None:
             print(f"gentlerl {args.command}: interrupted", file=sys.stderr)
-            return 130
+            return exit_status(interrupt)
         print(f"gentlerl {args.command}: error: {one_line(err)}", file=sys.stderr)
         return 1
     return status if isinstance(status, int) else 0  # some mains return their results

@@ -29,6 +29,7 @@ from typing import Any
 import torch
 from torchrl.envs.utils import ExplorationType
 
+from gentlerl.config.groups import MAX_HANDS
 from gentlerl.config.layout import RunLayout
 
 #: Rollout modes: the deterministic actor, and the actor with its training noise.
@@ -79,9 +80,9 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
             f"{ckpt} holds an actor only (a best_policy.pt or an exported policy): the critics "
             "are in the run's checkpoint.pt"
         )
+    cfg, _ = policy_from_state(state, ckpt)  # its config checked first: sizes within bounds
     env = None
     try:
-        cfg, _ = policy_from_state(state, ckpt)
         env = default_env_factory(cfg)()  # the run's own env (the hand, or an external one)
         builder = AgentBuilder(cfg, env)
         learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()
@@ -117,8 +118,11 @@ def critic_calibration(
     from gentlerl.training.critic_calibration import measure_calibration, penalty_surprise_sources
     from gentlerl.training.evaluation import rollout_episodes
 
-    if not (isinstance(episodes, int) and episodes >= 1):
-        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if isinstance(episodes, bool) or not (isinstance(episodes, int) and 1 <= episodes <= MAX_HANDS):
+        raise ValueError(
+            f"episodes must be an integer in [1, {MAX_HANDS}] (one hand each, stepped together "
+            f"as logging.eval_episodes are), got {episodes!r}"
+        )
     cfg, learner, rewards, info = load_agent(path)
     actor, critic = learner.actor, learner.loss.value_network.module
     heads = [str(k) for k in learner.loss.reward_keys]
@@ -219,8 +223,14 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") 
     parser.add_argument("--seed", type=int, default=0, help="block placements and noise")
     parser.add_argument("--json", metavar="PATH", help="also write the report as JSON there")
     args = parser.parse_args(argv)
+    from gentlerl.apps.outputs import check_output_file
     from gentlerl.training.checkpoint import CheckpointError
 
+    try:
+        if args.json is not None:  # before the rollouts, not after
+            check_output_file(args.json, (".json",))
+    except (ValueError, OSError) as err:
+        raise SystemExit(f"{prog}: error: --json {err}") from None
     try:
         report = critic_calibration(args.run, args.episodes, args.seed)
     except (ValueError, CheckpointError) as err:

@@ -69,7 +69,7 @@ def evaluate_policy(
     """
     from gentlerl.training.builders import default_env_factory, make_eval_env
     from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
-    from gentlerl.training.evaluation import evaluate
+    from gentlerl.training.evaluation import check_policy_fits, evaluate
     from gentlerl.training.logging import force_unit
 
     if not (isinstance(episodes, int) and episodes >= 1):
@@ -94,6 +94,7 @@ def evaluate_policy(
     env = make_eval_env(env_factory, seed, force_key=cfg.env.force)
     torch.manual_seed(seed)
     try:
+        check_policy_fits(env, actor, str(path))
         # The env's own time limit (200 steps by default) ends every episode before this cap.
         _, per_episode = evaluate(env, actor, episodes, max_steps=100_000)
     finally:

@@ -2,7 +2,11 @@
 
 Sweep keys become hydra overrides and values become folder names, so a key like
 ``+hydra.callbacks.x._target_`` would run code and a value like ``r/../../x`` would write outside
-``--out``: both are refused before anything runs, in one line naming the key or value.
+``--out``: both are refused before anything runs, in one line naming the key or value. Nor does a
+sweep choose where its runs execute: ``collector.kind=ray`` and ``collector.ray_address`` send
+the trainer's code to a Ray cluster, which runs what it is sent and answers with pickles, so they
+are refused unless the command line allows them (``allow_ray``). ``--set`` items follow the same
+rules as the file.
 """
 
 from __future__ import annotations
@@ -14,13 +18,22 @@ from typing import Any
 
 import yaml
 
-__all__ = ["check_key", "check_set", "check_value", "load_sweep", "sweepable_fields"]
+__all__ = [
+    "check_cluster",
+    "check_key",
+    "check_value",
+    "load_sweep",
+    "parse_set",
+    "sweepable_fields",
+]
 
 #: What a string in a sweep may hold: a name or a number, never a path separator, a hydra
 #: interpolation (``${...}``), a list or another override (``,`` ``=`` ``[`` spaces, quotes).
 _SAFE_STRING = re.compile(r"[A-Za-z0-9_.:+-]+")
 #: Fields the runner sets itself for each grid point.
 _RUNNER_FIELDS = ("run_dir", "resume")
+#: The command-line flag of ``gentlerl sweep`` that lets a sweep set the Ray collector.
+ALLOW_RAY_FLAG = "--allow-ray-collector"
 
 
 def sweepable_fields() -> dict[str, str]:
@@ -63,9 +76,25 @@ def check_value(key: str, value: Any, where: str) -> None:
         raise ValueError(f"{where}: {key}={value!r}: expected a number, a name or a list of them")
 
 
-def load_sweep(path: str | Path) -> dict[str, list[Any]]:
+def check_cluster(key: str, value: Any, where: str, allow_ray: bool = False) -> None:
+    """Refuse ``collector.kind=ray`` or a ``collector.ray_address`` (where the runs would execute
+    code) unless ``allow_ray``."""
+    if allow_ray or not (
+        (key == "collector.kind" and value == "ray")
+        or (key == "collector.ray_address" and value is not None)
+    ):
+        return
+    raise ValueError(
+        f"{where}: {key}={value!r}: a sweep does not choose where its runs execute (a Ray cluster "
+        f"runs the code it is sent); pass {ALLOW_RAY_FLAG} to let the sweep file and --set use "
+        "the Ray collector"
+    )
+
+
+def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]]:
     """``parameters`` of a wandb grid sweep file as name -> list of values, every key a config
-    field and every value plain (:func:`check_key`, :func:`check_value`)."""
+    field and every value plain (:func:`check_key`, :func:`check_value`), none choosing a Ray
+    cluster unless ``allow_ray`` (:func:`check_cluster`)."""
     try:
         spec = yaml.safe_load(Path(path).read_text())
     except yaml.YAMLError as err:
@@ -93,58 +122,52 @@ def load_sweep(path: str | Path) -> dict[str, list[Any]]:
             )
         for value in grid[name]:
             check_value(name, value, str(path))
+            check_cluster(str(name), value, str(path), allow_ray)
     if not grid:
         raise ValueError(f"{path}: no parameters")
     return grid
 
 
-def check_set(items: Sequence[str]) -> None:
-    """Refuse a ``--set`` override that is not ``field=value`` for a config field (or
-    ``+env.kwargs.NAME=value``, how a task keyword is added)."""
+def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, Any]]:
+    """``--set`` items as ``(key, value)``, each value read as YAML and held to a sweep file's
+    rules: ``field=value`` for a config field (or ``+env.kwargs.NAME=value``, how a task keyword
+    is added), a plain value (no ``${...}`` interpolation), no Ray collector unless
+    ``allow_ray``."""
+    parsed = []
     for item in items:
-        key, sep, _ = item.partition("=")
-        if sep and re.fullmatch(r"\+env\.kwargs\.[A-Za-z_][A-Za-z0-9_]*", key):
-            continue
+        key, sep, text = item.partition("=")
+        where = f"--set {item!r}"
         if not sep:
-            raise ValueError(f"--set {item!r}: expected FIELD=VALUE")
-        check_key(key, f"--set {item!r}")
+            raise ValueError(f"{where}: expected FIELD=VALUE")
+        if not re.fullmatch(r"\+env\.kwargs\.[A-Za-z_][A-Za-z0-9_]*", key):
+            check_key(key, where)
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            raise ValueError(f"{where}: the value is not a plain number, name or list") from None
+        check_value(key, value, where)
+        check_cluster(key, value, where, allow_ray)
+        parsed.append((key, value))
+    return parsed
 
 
 def point_problem(
-    point: Sequence[tuple[str, Any]], extra: Sequence[str], scale: str | None
+    point: Sequence[tuple[str, Any]], extra: Sequence[tuple[str, Any]], scale: str | None
 ) -> str | None:
-    """Why the config of a grid ``point`` (with the ``--set`` overrides ``extra``) is invalid, in
-    one line, or ``None`` (also when an ``extra`` value is beyond what YAML reads as hydra would:
-    the trainer then judges it)."""
+    """Why the config of a grid ``point`` (with the parsed ``--set`` items ``extra``,
+    :func:`parse_set`) is invalid, in one line, or ``None``."""
     from gentlerl.training.config import make_config
 
     overrides: dict[str, Any] = {}
-    for key, value in [*point, *_parsed(extra)]:
+    for key, value in [*point, *extra]:
         *groups, name = key.lstrip("+").split(".")
         target = overrides
         for group in groups:
             target = target.setdefault(group, {})
         target[name] = value
-    if any(value is _UNPARSED for _, value in _parsed(extra)):
-        return None
     try:
         make_config(overrides.pop("scale", scale or "cpu"), **overrides)
     except (ValueError, TypeError) as err:
         lines = [line.strip().removeprefix("- ") for line in str(err).splitlines()]
         return "; ".join(line for line in lines[1:] if line) or lines[0]
     return None
-
-
-_UNPARSED = object()
-
-
-def _parsed(extra: Sequence[str]) -> list[tuple[str, Any]]:
-    """``--set`` items as ``(key, value)``, each value read as YAML (``_UNPARSED`` if it is not)."""
-    items = []
-    for item in extra:
-        key, _, text = item.partition("=")
-        try:
-            items.append((key, yaml.safe_load(text)))
-        except yaml.YAMLError:
-            items.append((key, _UNPARSED))
-    return items

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from gentlerl.apps.grid import GridRun, expand, restrict, run_grid
 from gentlerl.apps.parsing import command_parser
-from gentlerl.apps.sweep_files import check_set, load_sweep, point_problem
+from gentlerl.apps.sweep_files import ALLOW_RAY_FLAG, load_sweep, parse_set, point_problem
 
 #: Runs a grid's points with the extra overrides and the command line's options; the counts of
 #: ``done`` / ``skipped`` / ``failed`` / ``planned`` points.
@@ -91,22 +91,45 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
         "a local Ray with --workers x --cpus-per-run CPUs)",
     )  # fmt: skip
     parser.add_argument("--cpus-per-run", type=float, default=1.0, help="ray: CPUs per run")
+    parser.add_argument(
+        ALLOW_RAY_FLAG, action="store_true",
+        help="let the sweep file and --set use collector.kind=ray and collector.ray_address "
+        "(the runs' code then executes on that Ray cluster)",
+    )  # fmt: skip
     return parser
+
+
+def _option_problem(args: argparse.Namespace) -> str | None:
+    """Why ``--workers``, ``--cpus-per-run`` or ``--address`` cannot be used, or ``None``."""
+    from gentlerl.distributed.cluster import parse_address
+
+    if args.workers < 1:
+        return f"--workers={args.workers} must be >= 1"
+    if not args.cpus_per_run > 0:
+        return f"--cpus-per-run={args.cpus_per_run} must be > 0"
+    if args.address not in (None, "auto"):
+        try:
+            parse_address(args.address)
+        except ValueError as err:
+            return f"--address {err}"
+    return None
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int:
     """Run a sweep file's grid (and, with ``--figures``, plot it); 1 if any run failed."""
     args = build_parser(prog).parse_args(argv)
-    if args.workers < 1:
-        raise SystemExit(f"--workers must be >= 1, got {args.workers}")
+    problem = _option_problem(args)
+    if problem:
+        raise SystemExit(f"{prog}: {problem}")
     root = Path(args.out) / Path(args.sweep).stem
     try:
-        check_set(args.set)
-        runs = expand(restrict(load_sweep(args.sweep), args.only), root)
+        extra_items = parse_set(args.set, args.allow_ray_collector)
+        grid = load_sweep(args.sweep, args.allow_ray_collector)
+        runs = expand(restrict(grid, args.only), root)
     except (ValueError, OSError) as err:
         raise SystemExit(f"{prog}: {err}") from None
     for run in runs:  # every point's config, before any point runs
-        problem = point_problem(run.overrides, args.set, args.scale)
+        problem = point_problem(run.overrides, extra_items, args.scale)
         if problem:
             raise SystemExit(f"{prog}: grid point {run.run_dir.name}: {problem}")
     extra = ([f"scale={args.scale}"] if args.scale else []) + list(args.set)

@@ -12,8 +12,8 @@ The config lives in the package (hydra's ``ConfigStore``): the schema is
 
 from __future__ import annotations
 
+import os
 import sys
-from pathlib import Path
 from typing import Any
 
 import hydra
@@ -39,17 +39,18 @@ HELP = """gentlerl-train: train a gentle-manipulation agent (Huang et al. 2019) 
 Usage: gentlerl-train [field=value ...] [scale=cpu|paper|real] [-m sweep=a,b ...]
 Example: gentlerl-train task=fragile variant=r+rf+rsp gentleness.lam_prime=[2,1.5] seed=1
 
-Fields (default, then {choices}):
+Fields (default, then {choices} or the range of its numbers):
 """
 
 
 def describe() -> str:
-    """One line per field: ``name=default  help [choices]`` (what ``--help`` prints)."""
+    """One line per field: ``name=default  help [choices or range]`` (what ``--help`` prints)."""
     defaults = TrainConfig()
     lines = []
     for name, f in iter_fields():
-        choices = choices_of(f)
+        choices, bounds = choices_of(f), f.metadata["bounds"]
         valid = f"  {{{', '.join(map(str, choices))}}}" if choices else ""
+        valid += f"  ({bounds.describe()})" if bounds is not None else ""
         # The app's run_dir is an interpolation of the run's identity, not the dataclass default.
         shown = "runs/<task>/<variant>/seed<seed>" if name == "run_dir" else get(defaults, name)
         lines.append(f"  {name}={_override(shown)}".ljust(42) + f" {f.metadata['help']}{valid}")
@@ -95,7 +96,8 @@ def register_configs() -> None:
         {"override hydra/hydra_logging": "disabled"},
     ]
     hydra_settings = {
-        "run": {"dir": "${run_dir}"},
+        # The trainer makes run_dir once the config is checked; hydra makes nothing.
+        "run": {"dir": "."},
         "sweep": {"dir": "runs", "subdir": RUN_DIR.removeprefix("runs/")},
         "output_subdir": None,
         "job": {"chdir": False},
@@ -110,50 +112,44 @@ def config_from_hydra(cfg: DictConfig) -> TrainConfig:
     return make_config(**values)
 
 
-def train_in(output_dir: Path, cfg: DictConfig) -> dict[str, float]:
-    """Train the run ``cfg`` describes; on failure, remove ``output_dir`` if it is still empty.
-
-    hydra makes its output dir (the run_dir) before the config is checked, so a refused run
-    would leave an empty directory behind.
-    """
-    try:
-        config = config_from_hydra(cfg)  # a refused config answers before torch is imported
-        from gentlerl.training.loop import train
-
-        return train(config)
-    except Exception:
-        if output_dir.is_dir() and not any(output_dir.iterdir()):
-            output_dir.rmdir()
-        raise
-
-
 def quiet_torchrl_info() -> None:
     """TorchRL's logger at WARNING, unless ``RL_LOGGING_LEVEL`` says otherwise: its INFO lines
     (each replay storage's size) would sit between the progress bar and the summary. TorchRL
     reads the variable when it is imported (here, and in collector processes)."""
-    import os
-
     os.environ.setdefault("RL_LOGGING_LEVEL", "WARNING")
 
 
 @hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
 def _app(cfg: DictConfig) -> dict[str, float]:
-    from hydra.core.hydra_config import HydraConfig
+    from omegaconf.errors import OmegaConfBaseException
 
-    from gentlerl.apps.errors import debugging, interrupted, one_line
+    from gentlerl.apps.errors import debugging, interrupted, one_line, sigterm_as_interrupt
+    from gentlerl.apps.overrides import hydra_error_line
     from gentlerl.distributed import ClusterError
 
     quiet_torchrl_info()
     try:
-        summary = train_in(Path(HydraConfig.get().runtime.output_dir), cfg)
+        with sigterm_as_interrupt():  # SIGTERM stops a run as Ctrl-C does
+            config = config_from_hydra(cfg)  # a refused config answers before torch is imported
+            from gentlerl.training.loop import train
+
+            summary = train(config)
     except ClusterError as err:  # Ray missing or its cluster unreachable: one line says why
-        raise SystemExit(str(err)) from None
+        refusal = str(err)
     except Exception as err:  # noqa: BLE001 - a refusal is one line; GENTLERL_DEBUG=1: traceback
         if debugging():
             raise
-        if interrupted(err):  # Ctrl-C that surfaced as another error inside a library
-            raise KeyboardInterrupt from None
-        raise SystemExit(f"gentlerl train: error: {one_line(err)}") from None
+        interrupt = interrupted(err)
+        if interrupt is not None:  # Ctrl-C that surfaced as another error inside a library
+            raise interrupt from None
+        if isinstance(err, OmegaConfBaseException):  # resolving an interpolation
+            refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
+        else:
+            refusal = f"gentlerl train: error: {one_line(err)}"
+    else:
+        refusal = None
+    if refusal is not None:  # raised here, holding no reference to the error and its frames
+        raise SystemExit(refusal)
     from gentlerl.apps.closing import closing_text
     from gentlerl.training.logging import force_unit
 
@@ -161,29 +157,45 @@ def _app(cfg: DictConfig) -> dict[str, float]:
     return summary
 
 
-def unknown_fields(overrides: list[str]) -> list[str]:
-    """The keys of plain ``key=value`` overrides that name no config field (hydra's own
-    ``hydra.*``, ``+`` / ``~`` / ``++`` overrides and flags are left to hydra)."""
-    valid = {name for name, _ in iter_fields()}
-    keys = [
-        a.partition("=")[0] for a in overrides if "=" in a and not a.startswith(("-", "+", "~"))
-    ]
-    return [k for k in keys if k not in valid and not k.startswith("hydra.") and k != "hydra"]
-
-
 def main() -> None:
-    """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides."""
+    """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides. A refusal, an
+    error of hydra's or an interruption is one line on stderr (``GENTLERL_DEBUG=1``: the
+    traceback)."""
     if {"-h", "--help"} & set(sys.argv[1:]):
         print(help_page())
         return
-    unknown = unknown_fields(sys.argv[1:])
-    if unknown:
-        raise SystemExit(
-            f"gentlerl train: error: unknown config field(s) {unknown}: `gentlerl train --help` "
-            "lists them (a task keyword goes in as +env.kwargs.NAME=VALUE)"
-        )
+    from gentlerl.apps.errors import debugging, exit_status
+    from gentlerl.apps.overrides import hydra_error_line, override_problems
+
+    problems = override_problems(sys.argv[1:])
+    if problems:
+        raise SystemExit(f"gentlerl train: error: {'; '.join(problems)}")
     register_configs()
-    _app()
+    full_error = os.environ.get(_FULL_ERROR)
+    os.environ[_FULL_ERROR] = "1"  # hydra raises its errors instead of printing them
+    try:
+        _app()
+        refusal = None
+    except Exception as err:  # noqa: BLE001 - hydra's errors (composing the config) are refusals
+        if debugging():
+            raise
+        refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
+    except KeyboardInterrupt as interrupt:
+        if debugging():
+            raise
+        print("gentlerl train: interrupted", file=sys.stderr)
+        refusal = exit_status(interrupt)
+    finally:
+        if full_error is None:
+            os.environ.pop(_FULL_ERROR, None)
+        else:
+            os.environ[_FULL_ERROR] = full_error
+    if refusal is not None:  # raised here, holding no reference to the error and its frames
+        raise SystemExit(refusal)
+
+
+#: Set, hydra raises the errors of composing a config instead of printing several lines.
+_FULL_ERROR = "HYDRA_FULL_ERROR"
 
 
 if __name__ == "__main__":

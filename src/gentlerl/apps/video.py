@@ -195,6 +195,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
     configure_gl(render=True)  # before dm_control is imported: EGL where OSMesa is absent
     from gentlerl.envs import make_env
     from gentlerl.training.checkpoint import load_policy
+    from gentlerl.training.evaluation import check_policy_fits
 
     args = build_parser(prog).parse_args(argv)
     if args.episodes < 1 or args.size < 16 or args.fps < 1:
@@ -212,6 +213,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
         raise SystemExit(f"{prog}: videos show gentlerl's hand; this run trained on {cfg.env.name}")
     env = make_env(cfg.task, seed=args.seed, **cfg.env.kwargs)
     try:
+        check_policy_fits(env, actor, args.checkpoint)
         frames = record_rollouts(env, actor, args.episodes, args.size, panel=not args.no_panel)
         print(write_video(frames, args.out, fps=args.fps))
     finally:

@@ -73,7 +73,7 @@ def setting(
         help: the one line ``gentlerl-train --help`` prints.
         choices: the valid values (a tuple, or a function returning them).
         bounds: the valid numbers, as :class:`Range` parses them (``None`` is always valid for
-            a field that may be null).
+            a field that may be null; for a list field, each of its values).
         resumable: a resumed run may change it (how long and how fast it goes on, what it
             logs); the other fields shape the saved networks, buffers or rewards.
     """
@@ -130,6 +130,33 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
+#: How a message names what a value of each scalar annotation must be.
+_KINDS = {bool: "true or false", int: "an integer", float: "a finite number", str: "a string"}
+
+
+def describe_type(hint: Any) -> str:
+    """What a value of annotation ``hint`` must be, as a message says it: ``"an integer"``,
+    ``"a list of integers"``, ``"a list of 2 finite numbers"``, ``"a string or null"``."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        kinds = [k for a in args if a is not type(None) for k in describe_type(a).split(" or ")]
+        kinds += ["null"] if type(None) in args else []
+        return ", ".join(kinds[:-1]) + " or " + kinds[-1]
+    if origin is tuple:
+        element = _KINDS.get(args[0], "value").removeprefix("an ").removeprefix("a ")
+        element = element if element.endswith("false") else f"{element}s"
+        count = "" if args[-1] is Ellipsis else f"{len(args)} "
+        return f"a list of {count}{element}"
+    if origin is dict:
+        return "a mapping"
+    return _KINDS.get(hint, f"a {getattr(hint, '__name__', hint)}")
+
+
+def field_hints(cls: type) -> dict[str, Any]:
+    """``{"group.name": annotation}`` of every leaf field of the config class ``cls``."""
+    return {name: hint for name, _, hint in _leaves(cls)}
+
+
 def _type_problem(name: str, hint: Any, value: Any) -> str | None:
     """Why ``value`` does not fit the annotation ``hint`` (or is not finite), or ``None``."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
@@ -139,14 +166,14 @@ def _type_problem(name: str, hint: Any, value: Any) -> str | None:
         alternatives = [a for a in args if a is not type(None)]
         found = [_type_problem(name, a, value) for a in alternatives]
         return None if None in found else found[0]
-    if hint is bool and not isinstance(value, bool):
-        return f"{name}={value!r} must be true or false"
-    if hint is int and not (isinstance(value, int) and not isinstance(value, bool)):
-        return f"{name}={value!r} must be an integer"
-    if hint is float and not (_is_number(value) and math.isfinite(value)):
-        return f"{name}={value!r} must be a finite number"
-    if hint is str and not isinstance(value, str):
-        return f"{name}={value!r} must be a string"
+    fits = {
+        bool: isinstance(value, bool),
+        int: isinstance(value, int) and not isinstance(value, bool),
+        float: _is_number(value) and math.isfinite(value),
+        str: isinstance(value, str),
+    }
+    if hint in fits and not fits[hint]:
+        return f"{name}={value!r} must be {describe_type(hint)}"
     if origin is tuple:
         if not isinstance(value, tuple | list):
             return f"{name}={value!r} must be a list"
@@ -158,7 +185,7 @@ def _type_problem(name: str, hint: Any, value: Any) -> str | None:
             if found:
                 return found
     if origin is dict and not isinstance(value, dict):
-        return f"{name}={value!r} must be a mapping"
+        return f"{name}={value!r} must be {describe_type(hint)}"
     return None
 
 
@@ -182,7 +209,12 @@ def declared_problems(config: Any, prefix: str = "") -> list[str]:
         if valid is not None and value not in valid:
             problems.append(f"{name}={value!r} is not one of {valid}")
         bounds = f.metadata.get("bounds")
-        if bounds is not None and value is not None and value not in bounds:
+        if bounds is None or value is None:
+            continue
+        if isinstance(value, tuple | list):  # a list of sizes: each one
+            if any(element not in bounds for element in value):
+                problems.append(f"{name}={list(value)}: each value must be {bounds.describe()}")
+        elif value not in bounds:
             nullable = type(None) in typing.get_args(hint)
             problems.append(
                 f"{name}={value} must be {bounds.describe()}" + (" (or null)" if nullable else "")

@@ -60,6 +60,22 @@ class EnvConfig:
         return "touch" if self.name is None else "force"
 
 
+# Upper bounds of the sizes: far above what any scale uses (the paper's: 1M transitions, 500k
+# frames, 400-unit layers, 5 members), low enough that no single value exhausts a 24 GB machine
+# before it starts (what a value past them would do: allocate until the memory runs out).
+#: env frames of a run (~100 days at 1,000 frames/s).
+MAX_FRAMES = 10**10
+#: transitions a replay buffer keeps (10x the paper's).
+MAX_TRANSITIONS = 10**7
+#: transitions per (model) update.
+MAX_BATCH = 65536
+#: units of a hidden layer (a 4096 x 4096 layer: 64 MiB of float32).
+MAX_WIDTH = 4096
+#: hands stepped together (a batched collector env, one evaluation's episodes).
+MAX_HANDS = 256
+#: torch / physics threads of one process.
+MAX_THREADS = 256
+
 #: Hands per collector env when ``collector.num_envs`` is null (the default) and the env factory
 #: batches: 4 hands share each step's TorchRL and policy overhead (1.35x one hand's collector
 #: frames/s on a quiet core, 1.98x at load 5-7; the default recipe 1.18x faster end to end with
@@ -75,7 +91,7 @@ class CollectorConfig:
         choices=COLLECTORS,
     )
     num_workers: int = setting(
-        2, "env processes of the multi collector, Ray actors of the ray one", bounds=">= 1"
+        2, "env processes of the multi collector, Ray actors of the ray one", bounds="[1, 512]"
     )
     ray_address: str | None = setting(
         None,
@@ -83,11 +99,12 @@ class CollectorConfig:
         resumable=True,
     )
     cpus_per_worker: float = setting(
-        1.0, "ray: CPUs each remote collector reserves", bounds="> 0", resumable=True
+        1.0, "ray: CPUs each remote collector reserves", bounds="(0, 256]", resumable=True
     )
     memory_per_worker_gb: float = setting(
-        1.0, "ray: memory (GiB) each remote collector reserves", bounds="> 0", resumable=True
-    )
+        1.0, "ray: memory (GiB) each remote collector reserves", bounds="(0, 1024]",
+        resumable=True,
+    )  # fmt: skip
     weight_sync_every: int = setting(
         50, "ray: learner updates between weight pushes to the workers", bounds=">= 1",
         resumable=True,
@@ -96,12 +113,12 @@ class CollectorConfig:
         None,
         "hands stepped together per collector env (BatchedHandEnv, kind=single); null: "
         f"{AUTO_NUM_ENVS} where the env factory batches (gentlerl's hand env), else 1",
-        bounds=">= 1",
+        bounds=f"[1, {MAX_HANDS}]",
     )
     env_threads: int | None = setting(
         None,
         "physics threads of a batched env (null: 1 per hand, at most 1 per core)",
-        bounds=">= 1",
+        bounds=f"[1, {MAX_THREADS}]",
         resumable=True,
     )
     overlap: bool | str = setting(
@@ -111,16 +128,16 @@ class CollectorConfig:
         resumable=True,
     )
     total_frames: int = setting(
-        100_000, "env steps of the whole run", bounds=">= 1", resumable=True
+        100_000, "env steps of the whole run", bounds=f"[1, {MAX_FRAMES}]", resumable=True
     )
     frames_per_batch: int = setting(
-        200, "env steps per collector batch", bounds=">= 1", resumable=True
+        200, "env steps per collector batch", bounds="[1, 100000]", resumable=True
     )
     init_random_frames: int = setting(
         10_000,
         "uniform random actions first (paper hand, 20 episodes each: 40 % succeed at touch, "
         "70 % break the fragile block)",
-        bounds=">= 0",
+        bounds=f"[0, {MAX_FRAMES}]",
         resumable=True,
     )  # fmt: skip
     sigma: float = setting(
@@ -131,9 +148,11 @@ class CollectorConfig:
 
 @dataclass
 class ReplayConfig:
-    buffer_size: int = setting(200_000, "n-step transitions kept", bounds=">= 1")
-    batch_size: int = setting(128, "transitions per learner update", bounds=">= 1", resumable=True)
-    n_steps: int = setting(5, "n of the n-step return", bounds=">= 1")
+    buffer_size: int = setting(200_000, "n-step transitions kept", bounds=f"[1, {MAX_TRANSITIONS}]")
+    batch_size: int = setting(
+        128, "transitions per learner update", bounds=f"[1, {MAX_BATCH}]", resumable=True
+    )
+    n_steps: int = setting(5, "n of the n-step return", bounds="[1, 100]")
     prioritized: bool = setting(True, "prioritised replay on the critic loss, else uniform")
     alpha: float = setting(0.6, "priority exponent", bounds="[0, 1]", resumable=True)
     beta: float = setting(
@@ -168,9 +187,15 @@ class LearnerConfig:
 
 @dataclass
 class NetworkConfig:
-    actor_hidden: tuple[int, ...] = setting((256, 256), "hidden layer sizes of the actor")
-    critic_hidden: tuple[int, ...] = setting((256, 256), "hidden layer sizes of each critic")
-    num_atoms: int = setting(101, "atoms of each critic head's categorical support", bounds=">= 1")
+    actor_hidden: tuple[int, ...] = setting(
+        (256, 256), "hidden layer sizes of the actor", bounds=f"[1, {MAX_WIDTH}]"
+    )
+    critic_hidden: tuple[int, ...] = setting(
+        (256, 256), "hidden layer sizes of each critic", bounds=f"[1, {MAX_WIDTH}]"
+    )
+    num_atoms: int = setting(
+        101, "atoms of each critic head's categorical support", bounds="[1, 1001]"
+    )
     v_min: float = setting(-10.0, "bottom of every head's support")
     v_max: float = setting(10.0, "top of every head's support")
     bounded_support: bool = setting(
@@ -205,13 +230,16 @@ class GentlenessConfig:
     penalty_target_period: int = setting(
         100, "model updates between penalty target copies", bounds=">= 1", resumable=True
     )
-    ensemble_size: int = setting(5, "members of each model ensemble", bounds=">= 1")
-    model_hidden: int = setting(128, "units of each of the models' 3 hidden layers", bounds=">= 1")
-    model_batch_size: int = setting(
-        64, "transitions per ensemble member and model update", bounds=">= 1", resumable=True
+    ensemble_size: int = setting(5, "members of each model ensemble", bounds="[1, 32]")
+    model_hidden: int = setting(
+        128, "units of each of the models' 3 hidden layers", bounds=f"[1, {MAX_WIDTH // 2}]"
     )
+    model_batch_size: int = setting(
+        64, "transitions per ensemble member and model update", bounds=f"[1, {MAX_BATCH}]",
+        resumable=True,
+    )  # fmt: skip
     model_buffer_size: int = setting(
-        100_000, "1-step transitions kept for the models", bounds=">= 1"
+        100_000, "1-step transitions kept for the models", bounds=f"[1, {MAX_TRANSITIONS}]"
     )
     lr_model: float = setting(1e-3, "Adam step size of the models", bounds="> 0", resumable=True)
     surprise_scale: float = setting(
@@ -241,8 +269,9 @@ class LoggingConfig:
         5_000, "env steps between evaluations", bounds=">= 1", resumable=True
     )
     eval_episodes: int = setting(
-        10, "noise-free episodes per evaluation", bounds=">= 0", resumable=True
-    )
+        10, "noise-free episodes per evaluation (stepped together as one batch of hands)",
+        bounds=f"[0, {MAX_HANDS}]", resumable=True,
+    )  # fmt: skip
     log_every_updates: int = setting(
         200, "updates averaged into one row of train/ scalars", bounds=">= 1", resumable=True
     )

@@ -33,6 +33,23 @@ SCALARS = "scalars"
 EVAL_EPISODES = "eval_episodes.csv"
 FINAL_EVAL_EPISODES = "final_eval_episodes.csv"
 STDOUT = "stdout.log"
+#: The longest folder name and path (bytes) that Linux filesystems take.
+NAME_MAX, PATH_MAX = 255, 4095
+
+
+def run_dir_problem(run_dir: str) -> str | None:
+    """Why ``run_dir`` cannot hold a run, in one line naming it (shortened when long), or
+    ``None``: empty (the working folder), a folder name over :data:`NAME_MAX` bytes or a path
+    over :data:`PATH_MAX`."""
+    shown = repr(run_dir) if len(run_dir) <= 80 else f"{run_dir[:60]!r}... ({len(run_dir)} chars)"
+    if not run_dir.strip():
+        return f"run_dir={shown} must name a directory (empty: the working one)"
+    name = next((n for n in Path(run_dir).parts if len(n.encode()) > NAME_MAX), None)
+    if name is not None:
+        return f"run_dir={shown}: a folder name is {len(name.encode())} bytes, over {NAME_MAX}"
+    if len(os.fsencode(run_dir)) > PATH_MAX:
+        return f"run_dir={shown} is longer than {PATH_MAX} bytes"
+    return None
 
 
 @dataclass(frozen=True)

@@ -50,16 +50,20 @@ def replay_problems(replay: ReplayConfig) -> list[str]:
     return []
 
 
+#: Hidden layers of the actor or a critic (each layer's size is bounded by its field).
+MAX_LAYERS = 8
+
+
 def network_problems(net: NetworkConfig) -> list[str]:
-    """Layer sizes, and a support with its bottom below its top (below 0 when penalties top at
-    0)."""
+    """One to :data:`MAX_LAYERS` hidden layers, and a support with its bottom below its top
+    (below 0 when penalties top at 0)."""
     problems = [
-        f"network.{name}={sizes} must be a non-empty list of sizes >= 1"
+        f"network.{name}={list(sizes)} must list 1 to {MAX_LAYERS} layer sizes"
         for name, sizes in (
             ("actor_hidden", net.actor_hidden),
             ("critic_hidden", net.critic_hidden),
         )
-        if not sizes or min(sizes) < 1
+        if not 1 <= len(sizes) <= MAX_LAYERS
     ]
     if not net.v_min < net.v_max:
         problems.append(f"network.v_min={net.v_min} must be < network.v_max={net.v_max}")

@@ -6,6 +6,8 @@ with a timeout tells within seconds whether anything listens there.
 
 from __future__ import annotations
 
+import ipaddress
+import re
 import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -18,6 +20,9 @@ RAY_EXTRA = "ray is not installed; install gentlerl's ray extra: pip install -e 
 CONNECT_TIMEOUT_S = 10.0
 #: Ray's ports when an address names none: the client server (ray://) and the GCS.
 _DEFAULT_PORTS = {"ray://": 10001, "": 6379}
+_EXPECTED = "'auto', 'host:port' or 'ray://host:port'"
+#: A DNS host name: dot-separated labels of letters, digits and inner hyphens.
+_HOST = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)(\.(?!-)[A-Za-z0-9-]{1,63}(?<!-))*")
 
 
 class ClusterError(RuntimeError):
@@ -34,17 +39,42 @@ def import_ray() -> ModuleType:
 
 
 def parse_address(address: str) -> tuple[str, int]:
-    """``ray://host:port`` or ``host:port`` -> (host, port); a bad address is a ``ValueError``."""
+    """``ray://host:port`` or ``host:port`` -> (host, port) (a missing port is Ray's default);
+    the host a name, an IPv4 address or a bracketed IPv6 one (``[::1]:6379``), the port in
+    ``[1, 65535]``. Anything else is a ``ValueError`` saying what is wrong with ``address``."""
     scheme = "ray://" if address.startswith("ray://") else ""
     hostport = address[len(scheme) :]
-    host, _, port = hostport.rpartition(":") if ":" in hostport else (hostport, "", "")
-    if not host:
-        raise ValueError(f"ray address {address!r} is not 'auto', 'host:port' or 'ray://host:port'")
+    if "://" in hostport or "/" in hostport:
+        raise ValueError(f"{address!r} is not {_EXPECTED} (no other scheme, no path)")
+    if hostport.startswith("["):  # [IPv6]:port
+        host, _, rest = hostport[1:].partition("]")
+        if rest and not rest.startswith(":"):
+            raise ValueError(f"{address!r} is not {_EXPECTED}")
+        port = rest[1:]
+        valid_host = _is_ip(host, ipaddress.IPv6Address)
+    else:
+        host, sep, port = hostport.rpartition(":")
+        host, port = (host, port) if sep else (hostport, "")
+        numeric = re.fullmatch(r"[0-9.]+", host) is not None
+        valid_host = _is_ip(host, ipaddress.IPv4Address) if numeric else bool(_HOST.fullmatch(host))
+    if not valid_host:
+        alone = "; a port alone is not an address" if host.isdigit() else ""
+        raise ValueError(
+            f"{address!r}: {host!r} is not a host name or an IP address ({_EXPECTED}{alone})"
+        )
     if not port:
         return host, _DEFAULT_PORTS[scheme]
-    if not port.isdigit():
-        raise ValueError(f"ray address {address!r}: port {port!r} is not a number")
+    if not re.fullmatch(r"[0-9]{1,5}", port) or not 1 <= int(port) <= 65535:
+        raise ValueError(f"{address!r}: port {port!r} is not a number in [1, 65535]")
     return host, int(port)
+
+
+def _is_ip(text: str, kind: type) -> bool:
+    try:
+        kind(text)
+    except ValueError:
+        return False
+    return True
 
 
 def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:

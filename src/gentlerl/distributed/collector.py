@@ -24,8 +24,8 @@ if TYPE_CHECKING:
 
 def ray_problems(col: CollectorConfig) -> list[str]:
     """The Ray collector's rules beyond each field's declared range (one line per problem):
-    with ``kind=ray`` a batch splits evenly over the workers; a cluster address must parse,
-    whatever the kind. (One hand per worker is :func:`gentlerl.config.rules.collector_problems`'
+    with ``kind=ray`` a batch splits evenly over the workers; a cluster address is for
+    ``kind=ray`` only (ignored otherwise), and must parse. (One hand per worker is :func:`gentlerl.config.rules.collector_problems`'
     rule, shared with the multi collector.)"""
     problems = []
     if col.kind == "ray" and col.num_workers >= 1 and col.frames_per_batch % col.num_workers:
@@ -34,11 +34,16 @@ def ray_problems(col: CollectorConfig) -> list[str]:
             f"collector.num_workers={col.num_workers} with collector.kind=ray (each Ray worker "
             "collects an equal share of a batch)"
         )
-    if col.ray_address not in (None, "auto"):
+    if col.ray_address is not None and col.kind != "ray":
+        problems.append(
+            f"collector.ray_address={col.ray_address!r} applies to collector.kind=ray only "
+            f"(got collector.kind={col.kind!r}); set it to null or use the Ray collector"
+        )
+    elif col.ray_address not in (None, "auto"):
         try:
             parse_address(col.ray_address)
         except ValueError as err:
-            problems.append(str(err))
+            problems.append(f"collector.ray_address={err}")
     return problems
 
 

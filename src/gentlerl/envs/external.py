@@ -110,6 +110,30 @@ def check_name(name: str) -> list[str]:
     return []
 
 
+def kwargs_problems(kwargs: dict) -> list[str]:
+    """Problems with the ``DMControlEnv`` keywords of ``env.kwargs`` that it would only meet
+    later and obscurely: ``frame_skip`` (an integer >= 1; 0 fails at the first step) and
+    ``device`` (one this machine's torch has)."""
+    problems = []
+    skip = kwargs.get("frame_skip", 1)
+    if isinstance(skip, bool) or not isinstance(skip, int) or skip < 1:
+        problems.append(f"env.kwargs.frame_skip={skip!r} must be an integer >= 1")
+    if "device" in kwargs:
+        device = kwargs["device"]
+        try:
+            parsed = torch.device(device)
+        except (RuntimeError, TypeError):
+            return [*problems, f"env.kwargs.device={device!r} is not a torch device (cpu, cuda:0)"]
+        count = torch.cuda.device_count() if parsed.type == "cuda" else None
+        if count is not None and (parsed.index or 0) >= count:
+            problems.append(
+                f"env.kwargs.device={device!r}: this machine's torch has {count} CUDA device(s)"
+            )
+        elif parsed.type not in ("cpu", "cuda"):
+            problems.append(f"env.kwargs.device={device!r} must be cpu or cuda[:N]")
+    return problems
+
+
 def adapt_env(
     env: EnvBase,
     *,
@@ -143,16 +167,17 @@ def adapt_env(
     missing = [k for k in observation_keys if k not in spec.keys()]
     if missing:
         raise ValueError(
-            f"observation key(s) {missing} are not in the env's observation spec "
-            f"{sorted(map(str, spec.keys()))}"
+            f"observation key(s) {missing} (env.observation_keys) are not in the env's "
+            f"observation spec {sorted(map(str, spec.keys()))}"
         )
     transforms: list[Transform] = [DoubleToFloat()]
     adapter = FORCE_ADAPTERS[force_adapter]
     if adapter is not None:
         if adapter.source not in spec.keys():
             raise ValueError(
-                f"force adapter {force_adapter!r} reads {adapter.source!r}, which the env lacks "
-                f"(observation keys {sorted(map(str, spec.keys()))}); see FORCE_ADAPTERS"
+                f"force adapter {force_adapter!r} (env.force_adapter) reads {adapter.source!r}, "
+                f"which the env lacks (observation keys {sorted(map(str, spec.keys()))}); see "
+                "FORCE_ADAPTERS"
             )
         transforms += adapter.build(adapter.source, force_key)
     if list(observation_keys) != [keys.OBSERVATION]:
@@ -164,8 +189,15 @@ def adapt_env(
         out.append_transform(transform)
     if force_key not in out.observation_spec.keys(True):
         raise ValueError(
-            f"force key {force_key!r} is not written by the env nor by adapter "
+            f"force key {force_key!r} (env.force_key) is not written by the env nor by adapter "
             f"{force_adapter!r} (observation keys {sorted(map(str, out.observation_spec.keys()))})"
+        )
+    shape = list(out.observation_spec[force_key].shape[len(out.batch_size) :])
+    if len(shape) < 2:
+        raise ValueError(
+            f"force key {force_key!r} (env.force_key) has shape {shape}, not the [n_sites, "
+            f"n_channels] newtons the rewards read (env.force_adapter={force_adapter!r}; "
+            "touch_newtons adds the channel dim of a reading in N)"
         )
     if force_scale != 1.0:  # after the observation is built: it keeps the env's own reading
         out.append_transform(

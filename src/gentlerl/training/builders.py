@@ -175,10 +175,13 @@ class AgentParts(NamedTuple):
     beta_schedule: LinearScheduler | None
 
 
-def make_agent(cfg: TrainConfig, env_factory: EnvFactory) -> AgentParts:
-    """The agent of ``cfg``, sized from one probe env of ``env_factory`` whose keys are checked
-    first (:func:`check_env_keys`); the beta schedule spans the run's ``utd_ratio`` updates."""
-    probe = env_factory()
+def make_agent(
+    cfg: TrainConfig, env_factory: EnvFactory, probe: EnvBase | None = None
+) -> AgentParts:
+    """The agent of ``cfg``, sized from the env ``probe`` (closed here; default: one of
+    ``env_factory``) whose keys are checked first (:func:`check_env_keys`); the beta schedule
+    spans the run's ``utd_ratio`` updates."""
+    probe = probe if probe is not None else env_factory()
     try:
         builder = AgentBuilder(cfg, probe)
         rewards = builder.make_intrinsic_rewards()

@@ -25,6 +25,7 @@ from torchrl.data import ReplayBuffer
 from gentlerl.data.prioritized import FlatPriorityTree
 from gentlerl.models import make_actor
 from gentlerl.training.config import TrainConfig, group_flat_config, make_config
+from gentlerl.training.policy_weights import actor_weights_problem
 
 
 class CheckpointError(ValueError):
@@ -221,35 +222,12 @@ def policy_from_state(
         reason = "; ".join(line.strip(" -") for line in str(err).splitlines()[1:]) or str(err)
         raise CheckpointError(f"{path}: its config is invalid: {reason}") from None
     sizes = (state["obs_dim"], state["action_dim"], cfg.network.actor_hidden)
-    _check_actor_weights(state["actor"], sizes, path)
+    problem = actor_weights_problem(state["actor"], sizes)
+    if problem is not None:
+        raise CheckpointError(f"{path}: {problem}")
     actor = make_actor(*sizes)
     actor.load_state_dict(state["actor"])
     return cfg, actor.eval()
-
-
-def _check_actor_weights(weights: Any, sizes: tuple, path: str | os.PathLike) -> None:
-    """Refuse weights whose names or shapes are not those of the actor the file's sizes describe,
-    before that actor is built: the sizes are checked on the ``meta`` device, which allocates
-    nothing, so a file cannot demand a huge allocation (``actor_hidden=[200000, 200000]``)."""
-    obs_dim, action_dim, hidden = sizes
-    for name, value in (("obs_dim", obs_dim), ("action_dim", action_dim)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise CheckpointError(f"{path}: {name}={value!r} must be an integer >= 1")
-    if not isinstance(weights, dict) or not all(
-        isinstance(v, torch.Tensor) for v in weights.values()
-    ):
-        raise CheckpointError(f"{path}: its actor is not a mapping of weight tensors")
-    with torch.device("meta"):
-        expected = {k: tuple(v.shape) for k, v in make_actor(*sizes).state_dict().items()}
-    found = {k: tuple(v.shape) for k, v in weights.items()}
-    if found != expected:
-        diff = sorted(set(expected) ^ set(found)) or [
-            f"{k} {found[k]} (expected {expected[k]})" for k in expected if found[k] != expected[k]
-        ]
-        raise CheckpointError(
-            f"{path}: its actor weights do not match its config (obs_dim={obs_dim}, "
-            f"action_dim={action_dim}, network.actor_hidden={list(hidden)}): {diff[0]}"
-        )
 
 
 def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]:

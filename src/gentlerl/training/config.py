@@ -16,6 +16,7 @@ from gentlerl.config import fields
 from gentlerl.config.fields import setting
 from gentlerl.config.groups import (
     GROUPS,
+    MAX_THREADS,
     CollectorConfig,
     EnvConfig,
     GentlenessConfig,
@@ -24,6 +25,7 @@ from gentlerl.config.groups import (
     NetworkConfig,
     ReplayConfig,
 )
+from gentlerl.config.layout import run_dir_problem
 from gentlerl.config.presets import SCALES
 from gentlerl.config.rules import GROUP_RULES
 from gentlerl.distributed.collector import ray_problems
@@ -76,7 +78,8 @@ class TrainConfig:
         False, "continue run_dir's run: true, false (start), auto (either)", resumable=True
     )
     num_threads: int = setting(
-        1, "torch threads (the env and workers need the other cores)", bounds=">= 1",
+        1, "torch threads (the env and workers need the other cores)",
+        bounds=f"[1, {MAX_THREADS}]",
         resumable=True,
     )  # fmt: skip
     env: EnvConfig = field(default_factory=EnvConfig)
@@ -216,20 +219,20 @@ def _resume_problems(cfg: TrainConfig) -> list[str]:
 
 
 def _run_problems(cfg: TrainConfig) -> list[str]:
-    """A seed numpy takes and a run directory that is not the working one."""
+    """A seed numpy takes and a run directory that can be one (:func:`run_dir_problem`)."""
     problems = []
     if not 0 <= cfg.seed < 2**32:
         problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
-    if not cfg.run_dir.strip():
-        problems.append(f"run_dir={cfg.run_dir!r} must name a directory (empty: the working one)")
-    return problems
+    problem = run_dir_problem(cfg.run_dir)
+    return problems + ([problem] if problem else [])
 
 
 def _env_problems(cfg: TrainConfig) -> list[str]:
     """``env.kwargs`` the hand's task accepts (listing the valid ones), ``env.name`` (a known
-    external env), ``env.force_adapter``, ``env.observation_keys`` and ``env.force_scale`` (only
-    with an external env; the adapter a known one). The env modules (MuJoCo, TorchRL) are
-    imported only to check what needs them: task keywords, an external env."""
+    external env, its keywords that would fail only later), ``env.force_adapter``,
+    ``env.observation_keys`` (each once) and ``env.force_scale`` (only with an external env; the
+    adapter a known one). The env modules (MuJoCo, TorchRL) are imported only to check what
+    needs them: task keywords, an external env."""
     env = cfg.env
     if env.name is None:
         problems = [
@@ -252,13 +255,17 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
                     f"env.kwargs {unknown} are not keywords of task {cfg.task!r}; valid: {valid}"
                 )
         return problems
-    from gentlerl.envs.external import FORCE_ADAPTERS, check_name
+    from gentlerl.envs.external import FORCE_ADAPTERS, check_name, kwargs_problems
 
-    problems = check_name(env.name)  # the kwargs go to the external env
+    problems = check_name(env.name) + kwargs_problems(env.kwargs)  # they go to the external env
     if env.force_adapter is not None and env.force_adapter not in FORCE_ADAPTERS:
         problems.append(
             f"env.force_adapter={env.force_adapter!r} is not one of {sorted(FORCE_ADAPTERS)}"
         )
-    if env.observation_keys is not None and not env.observation_keys:
+    keys = env.observation_keys
+    if keys is not None and not keys:
         problems.append("env.observation_keys=[] must name at least one entry (or null: all)")
+    elif keys is not None and len(set(keys)) < len(keys):
+        twice = sorted({k for k in keys if keys.count(k) > 1})
+        problems.append(f"env.observation_keys={list(keys)} names {twice} more than once")
     return problems

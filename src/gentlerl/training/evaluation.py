@@ -94,6 +94,21 @@ def evaluate(
     return summarize_episodes(rollout_episodes(env, actor, episodes, max_steps))
 
 
+def check_policy_fits(env: EnvBase, actor: TensorDictModule, policy: str) -> None:
+    """Refuse (``ValueError``, one line naming the ``policy`` file and both sizes) an actor whose
+    input is not the size of ``env``'s observation or whose output is not its action's."""
+    layers = [m for m in actor.modules() if isinstance(m, torch.nn.Linear)]
+    sizes = {"obs_dim": layers[0].in_features, "action_dim": layers[-1].out_features}
+    specs = {"obs_dim": env.observation_spec[keys.OBSERVATION], "action_dim": env.action_spec}
+    for name, spec in specs.items():
+        if spec.shape[-1] != sizes[name]:
+            raise ValueError(
+                f"{policy}: its actor has {name}={sizes[name]}, but this env's "
+                f"{name.removesuffix('_dim').replace('obs', 'observation')} has "
+                f"{spec.shape[-1]} values (the policy trained on another env or task)"
+            )
+
+
 def rank(result: dict[str, float]) -> tuple[float, float, float]:
     """Order of evaluations: higher success rate, then lower broken rate, then lower mean max
     impact (the gentler of two equally successful policies). An env without success (no rate;

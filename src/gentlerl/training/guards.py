@@ -160,15 +160,24 @@ def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) 
             else math.isfinite(value)
         )
         if not finite:
-            kept = (
-                f"the last checkpoint {checkpoint} is intact"
-                if checkpoint.exists()
-                else ("no checkpoint was written yet")
-            )
             raise NonFiniteError(
-                f"non-finite {name} at {where}: training stopped; {kept} (a NaN / inf "
-                "reward or loss: check the env's forces, the config's numbers, the learning rates)"
+                f"non-finite {name} at {where}: training stopped; {checkpoint_note(checkpoint)} "
+                "(a NaN / inf reward or loss: check the env's forces, the config's numbers, the "
+                "learning rates)"
             )
+
+
+def checkpoint_note(checkpoint: Path) -> str:
+    """What a stopped run left to resume from: its last checkpoint, or none yet."""
+    if checkpoint.exists():
+        return f"the last checkpoint {checkpoint} is intact"
+    return "no checkpoint was written yet"
+
+
+def resumable_fault(err: OSError, checkpoint: Path) -> OSError:
+    """``err`` (a fault outside the run: a collector process killed) saying what the run left
+    (:func:`checkpoint_note`) and that ``resume=auto`` continues it."""
+    return type(err)(f"{err}; {checkpoint_note(checkpoint)}: rerun with resume=auto to continue")
 
 
 def check_rewards(batch: Any, reward_keys: list[str], frames: int, checkpoint: Path) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from tensordict import TensorDictBase
 from torchrl import timeit
+from torchrl.envs import EnvBase
 
 from gentlerl.agent.learner import TrainingState
 from gentlerl.config.layout import RunLayout
@@ -43,6 +44,7 @@ from gentlerl.training.checkpoint import (
 )
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import evaluation_scalars
+from gentlerl.training.env_probe import probe_env
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
@@ -50,17 +52,21 @@ from gentlerl.training.seeding import rng_state, set_rng_state
 
 
 class Trainer:
-    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train`."""
+    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train` (which passes
+    the env it probed as ``probe``; without one the env is probed here)."""
 
-    def __init__(self, cfg: TrainConfig, env_factory: EnvFactory | None = None) -> None:
+    def __init__(
+        self, cfg: TrainConfig, env_factory: EnvFactory | None = None, probe: EnvBase | None = None
+    ) -> None:
         validate(cfg)
         self.cfg, self.layout = cfg, RunLayout(cfg.run_dir)
+        self.env_factory = env_factory or default_env_factory(cfg)
+        probe = probe if probe is not None else probe_env(cfg, self.env_factory)
         # Before anything is written: a refused resume leaves no trace in the run directory.
         self.resume_state = guards.load_resume_state(cfg, self.layout.checkpoint)
         prepare_process(cfg)
         self.layout.root.mkdir(parents=True, exist_ok=True)
-        self.env_factory = env_factory or default_env_factory(cfg)
-        agent = make_agent(cfg, self.env_factory)
+        agent = make_agent(cfg, self.env_factory, probe)
         self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
         self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
@@ -105,6 +111,8 @@ class Trainer:
         collector = make_run_collector(self.cfg, self.env_factory, policy, frames)
         try:
             self._loop(collector, logger, eval_env)
+        except ChildProcessError as err:  # a collector process was killed: the run can go on
+            raise guards.resumable_fault(err, self.layout.checkpoint) from err
         finally:  # also on a worker's error: no env processes or Ray actors left behind
             collector.shutdown()
 
@@ -294,6 +302,8 @@ def train(cfg: TrainConfig, env_factory: EnvFactory | None = None) -> dict[str, 
     ``env_factory`` (default: the hand task ``cfg.task`` or the external env ``cfg.env.name``)
     must write ``observation`` and the force ``cfg.env.force``, and may write ``success`` and
     ``broken`` (without them, evaluations are ranked by their return)."""
-    validate(cfg)  # before the lock: a refused config creates nothing
+    validate(cfg)  # before the lock: a refused config or env creates nothing
+    env_factory = env_factory or default_env_factory(cfg)
+    probe = probe_env(cfg, env_factory)
     with RunLock(cfg.run_dir):  # one writer per run directory
-        return Trainer(cfg, env_factory).run()
+        return Trainer(cfg, env_factory, probe).run()

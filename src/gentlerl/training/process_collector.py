@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import multiprocessing
 import pickle
+import signal
 import traceback
 from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection
@@ -80,6 +81,16 @@ def _serve(conn: Connection, setup: bytes) -> None:
             _send(conn, ("error", traceback.format_exc()))
 
 
+class CollectorDied(ChildProcessError):
+    """The collector's child process ended without being asked to (killed, out of memory)."""
+
+
+def _ended(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        return f"the collector process was killed by {signal.Signals(-exitcode).name}"
+    return f"the collector process ended unexpectedly (exit code {exitcode})"
+
+
 class ProcessCollector:
     """A TorchRL ``Collector`` in a child process, one batch ahead; see the module doc.
 
@@ -126,9 +137,8 @@ class ProcessCollector:
         try:
             status, result = _receive(self._conn)
         except EOFError as err:
-            raise RuntimeError(
-                f"the collector process ended (exit code {self._process.exitcode})"
-            ) from err
+            self._process.join(SHUTDOWN_TIMEOUT_S)  # its exit code is known once it is reaped
+            raise CollectorDied(_ended(self._process.exitcode)) from err
         finally:
             self._open -= 1
         if status == "error":

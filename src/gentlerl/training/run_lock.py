@@ -21,8 +21,8 @@ class RunLockedError(OSError):
 
 
 class RunLock:
-    """Hold ``run_dir/.lock`` (``with RunLock(run_dir): ...``); creates ``run_dir`` (and removes
-    it on release if it is still empty).
+    """Hold ``run_dir/.lock`` (``with RunLock(run_dir): ...``); creates ``run_dir`` (and on
+    release removes the folders it created that are still empty, ``run_dir`` and its parents).
 
     Raises:
         RunLockedError: another live process holds it.
@@ -31,11 +31,13 @@ class RunLock:
     def __init__(self, run_dir: str | os.PathLike) -> None:
         self.path = RunLayout(run_dir).lock
         self._fd: int | None = None
-        self._made_dir = False
+        #: The folders this lock created, deepest first.
+        self._made: list[Path] = []
 
     def acquire(self) -> RunLock:
-        self._made_dir = not self.path.parent.exists()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        run_dir = self.path.parent
+        self._made = [d for d in (run_dir, *run_dir.parents) if not d.exists()]
+        run_dir.mkdir(parents=True, exist_ok=True)
         for _ in range(10):  # the file may be removed by its holder between open and flock
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
@@ -64,9 +66,11 @@ class RunLock:
             self._remove_empty_dir()
 
     def _remove_empty_dir(self) -> None:
-        """A run refused before writing anything leaves no empty directory it made behind."""
-        if self._made_dir and not any(self.path.parent.iterdir()):
-            self.path.parent.rmdir()
+        """A run refused before writing anything leaves no empty folder it made behind."""
+        for folder in self._made:
+            if any(folder.iterdir()):
+                return
+            folder.rmdir()
 
     def __enter__(self) -> RunLock:
         return self.acquire()

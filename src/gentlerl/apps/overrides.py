@@ -1,0 +1,72 @@
+"""The ``gentlerl-train`` command line before and after hydra reads it: overrides refused up
+front, and hydra's own errors as one line naming the field, the value and what is expected.
+
+Refused before hydra runs: a key that names no config field, ``~field`` (the field would
+silently take its default) and hydra's run / sweep directories (the run's is ``run_dir``; hydra
+would leave the folder it names empty).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+from gentlerl.apps.errors import causes
+from gentlerl.config.fields import describe_type, field_hints
+from gentlerl.config.groups import GROUPS
+from gentlerl.training.config import TrainConfig
+
+#: hydra's folders, which gentlerl sets from ``run_dir``.
+HYDRA_DIRS = ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir")
+
+
+def override_problems(overrides: Sequence[str]) -> list[str]:
+    """One line per override of ``overrides`` (a ``gentlerl-train`` command line) refused before
+    hydra reads it; hydra's other flags and ``hydra.*`` settings are left to hydra."""
+    fields = field_hints(TrainConfig)
+    plain = [
+        a.partition("=")[0] for a in overrides if "=" in a and not a.startswith(("-", "+", "~"))
+    ]
+    unknown = [k for k in plain if k not in fields and not k.startswith("hydra.") and k != "hydra"]
+    problems = []
+    if unknown:
+        problems.append(
+            f"unknown config field(s) {unknown}: `gentlerl train --help` lists them (a task "
+            "keyword goes in as +env.kwargs.NAME=VALUE)"
+        )
+    for item in overrides:
+        key = item.partition("=")[0]
+        if key.startswith("~") and (key[1:] in fields or key[1:] in GROUPS):
+            problems.append(
+                f"{item}: a config field cannot be removed (it would take its default without a "
+                f"word); set it instead ({key[1:]}=...)"
+            )
+        elif key.lstrip("+") in HYDRA_DIRS:
+            problems.append(f"{item}: gentlerl sets hydra's folders from run_dir; set run_dir")
+    return problems
+
+
+def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:
+    """hydra's error ``err`` (composing the config of ``overrides``, or resolving it) as one line:
+    ``field=value must be <type>`` for a value of the wrong type, the override and hydra's reason
+    for anything else."""
+    hints = field_hints(TrainConfig)
+    given = {a.partition("=")[0].lstrip("+"): a for a in overrides if "=" in a}
+    for cause in causes(err):
+        field = re.sub(r"\[\d+\]$", "", str(getattr(cause, "full_key", "") or ""))
+        if field not in hints:
+            continue
+        item = given.get(field, f"{field}=...")
+        if type(cause).__name__ == "ValidationError":
+            return f"{item} must be {describe_type(hints[field])}"
+        return f"{item}: {_first_line(cause)}"
+    bad = next((getattr(e, "override", None) for e in causes(err) if hasattr(e, "override")), None)
+    if bad is None:
+        return _first_line(err)
+    key, _, value = bad.partition("=")
+    return f"{bad}: {_first_line(err)} (a value hydra's grammar cannot read; a string: {key}='{value}')"
+
+
+def _first_line(err: BaseException) -> str:
+    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
+    return lines[0] if lines else type(err).__name__
