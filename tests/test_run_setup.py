@@ -38,7 +38,7 @@ def test_make_agent_refuses_an_env_without_the_keys_the_run_reads(tmp_path):
     def no_touch():
         return TransformedEnv(ToyHandEnv(), RenameTransform(["touch"], ["force"]))
 
-    with pytest.raises(ValueError, match="the env does not produce 'touch'"):
+    with pytest.raises(ValueError, match="reads 'touch', which the env's spec lacks"):
         make_agent(tiny_config(tmp_path), no_touch)
 
 
@@ -67,5 +67,5 @@ def test_progress_counts_from_where_the_loop_started():
     assert progress.env_steps_per_s(400) == 0.0 and progress.env_steps_per_s(500) > 0
     progress.advance(100, [{"frames": 500, "success_rate": 0.5}])
     assert progress.bar.n == 500
-    assert progress.bar.postfix == "success=0.00, max_impact=0.00N, eval=0.50"
+    assert progress.bar.postfix == "success=0.00, max_impact=0.00 N, eval=0.50"
     progress.close()

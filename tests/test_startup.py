@@ -34,7 +34,7 @@ print("STATUS", status, "HEAVY", ",".join(loaded) or "none")
 """
 
 CASES = {
-    "help": (["train", "--help"], "Fields (default, then {choices}):"),
+    "help": (["train", "--help"], "Fields (default, then {choices} or the range of its numbers):"),
     "refusal": (["train", "variant=bogus"], "gentlerl train: error: invalid training config"),
 }
 
