@@ -19,7 +19,7 @@ from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
 from gentlerl.agent.chain import RewardChain
-from gentlerl.agent.specs import env_feature_shapes
+from gentlerl.agent.specs import env_sizes
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.config import GentlenessConfig
 from gentlerl.data import WINDOW, make_model_buffer, nstep_return
@@ -133,26 +133,13 @@ class IntrinsicRewards:
         groups where the env has them, else the entries its ``observation`` concatenates, else
         the observation itself. ``settings`` defaults to :class:`~gentlerl.config.GentlenessConfig`.
         """
-        spec = env.observation_spec
-        present = sorted(map(str, spec.keys(True, True)))
-        for name, key in (("obs_key", obs_key), ("force_key", force_key)):
-            if key not in spec.keys(True, True):
-                raise KeyError(
-                    f"IntrinsicRewards.from_env: {name}={key!r} is not in the env's observation "
-                    f"spec, which has {present}"
-                )
-        force_shape = spec[force_key].shape[len(env.batch_size) :]
-        if len(force_shape) < 2:
-            raise ValueError(
-                f"IntrinsicRewards.from_env: {force_key!r} must be [..., n_sites, n_channels], "
-                f"got {tuple(force_shape)} (UnsqueezeTransform(-1) adds a channel dim)"
-            )
+        obs_dim, action_dim, feature_shapes = env_sizes(env, obs_key, force_key)
         return cls(
             variant,
             settings if settings is not None else GentlenessConfig(),
-            obs_dim=spec[obs_key].shape[-1],
-            action_dim=env.action_spec.shape[-1],
-            feature_shapes=env_feature_shapes(env, obs_key),
+            obs_dim=obs_dim,
+            action_dim=action_dim,
+            feature_shapes=feature_shapes,
             seed=seed,
             force_key=force_key,
             obs_key=obs_key,

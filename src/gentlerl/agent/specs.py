@@ -1,4 +1,5 @@
-"""What an env's specs say about the agent's sizes: the dynamics model's feature groups."""
+"""What an env's specs say about the agent's sizes: observation, action, the dynamics model's
+feature groups."""
 
 from __future__ import annotations
 
@@ -30,3 +31,26 @@ def env_feature_shapes(env: EnvBase, obs_key: str = keys.OBSERVATION) -> dict[st
     if keys.JOINT_POS not in features:
         features = observation_sources(env, obs_key) or features or [obs_key]
     return {k: tuple(spec[k].shape[batch_dims:]) for k in features}
+
+
+def env_sizes(
+    env: EnvBase, obs_key: str, force_key: str
+) -> tuple[int, int, dict[str, tuple[int, ...]]]:
+    """``(obs_dim, action_dim, feature_shapes)`` of ``env``, or an error naming the entry it lacks
+    (``obs_key``, ``force_key``) and the entries it has, or a force not shaped
+    ``[..., n_sites, n_channels]``."""
+    spec = env.observation_spec
+    present = sorted(map(str, spec.keys(True, True)))
+    for name, key in (("obs_key", obs_key), ("force_key", force_key)):
+        if key not in spec.keys(True, True):
+            raise KeyError(
+                f"IntrinsicRewards.from_env: {name}={key!r} is not in the env's observation "
+                f"spec, which has {present}"
+            )
+    force_shape = spec[force_key].shape[len(env.batch_size) :]
+    if len(force_shape) < 2:
+        raise ValueError(
+            f"IntrinsicRewards.from_env: {force_key!r} must be [..., n_sites, n_channels], "
+            f"got {tuple(force_shape)} (UnsqueezeTransform(-1) adds a channel dim)"
+        )
+    return spec[obs_key].shape[-1], env.action_spec.shape[-1], env_feature_shapes(env, obs_key)
