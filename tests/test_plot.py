@@ -167,3 +167,19 @@ def test_fig5_prefers_the_evaluate_episodes_unless_they_are_older_than_the_run(t
     (run / "final_eval_episodes.csv").write_text(EPISODES_HEADER + "3000,0,1,0,7.0,1\n")
     rows, source = final_policy_episodes(load_run(run))
     assert source == "evaluate" and successful_final_impacts([load_run(run)]).tolist() == [7.0]
+
+
+def test_the_printed_table_leaves_out_columns_no_run_has_data_for():
+    """An external env's runs have no success or broken rate: no ``nan`` column is printed."""
+    from gentlerl.analysis.summary import format_table
+
+    nan = float("nan")
+    rows = [
+        {"task": "finger-spin", "final_success": nan, "final_return": 145.5},
+        {"task": "finger-spin", "final_success": nan, "final_return": 0.0},
+    ]
+    table = format_table(rows)
+    assert "final_success" not in table and "nan" not in table
+    assert table.splitlines()[0] == "| task | final_return |"
+    rows[1]["final_success"] = 0.5  # one run with data keeps the column, nan where it has none
+    assert "| finger-spin | nan | 145.50 |" in format_table(rows)

@@ -126,9 +126,14 @@ def _cell(value: object) -> str:
     return f"{value:.2f}" if isinstance(value, float) else str(value)
 
 
+def _no_data(value: object) -> bool:
+    return isinstance(value, float) and np.isnan(value)
+
+
 def format_table(rows: Sequence[dict[str, object]]) -> str:
-    """``rows`` of :func:`summary_table` as a markdown table (floats to 2 decimals)."""
-    names = list(rows[0])
+    """``rows`` of :func:`summary_table` as a markdown table (floats to 2 decimals), without the
+    columns no row has data for (an external env's success and broken rates)."""
+    names = [n for n in rows[0] if not all(_no_data(row[n]) for row in rows)]
     lines = ["| " + " | ".join(names) + " |", "|" + " --- |" * len(names)]
     lines += ["| " + " | ".join(_cell(row[n]) for n in names) + " |" for row in rows]
     return "\n".join(lines)
