@@ -171,8 +171,6 @@ def test_fig5_prefers_the_evaluate_episodes_unless_they_are_older_than_the_run(t
 
 def test_the_printed_table_leaves_out_columns_no_run_has_data_for():
     """An external env's runs have no success or broken rate: no ``nan`` column is printed."""
-    from gentlerl.analysis.summary import format_table
-
     nan = float("nan")
     rows = [
         {"task": "finger-spin", "final_success": nan, "final_return": 145.5},
