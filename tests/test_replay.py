@@ -170,15 +170,25 @@ def test_the_torch_sampler_logs_no_cpp_extension_warning():
             records.append(record.getMessage())
 
     handler = Keep(level=logging.DEBUG)
-    filters, level = list(torchrl_logger.filters), torchrl_logger.level
+    filters, level, disabled = (
+        list(torchrl_logger.filters),
+        torchrl_logger.level,
+        torchrl_logger.disabled,
+    )
     torchrl_logger.addHandler(handler)
-    torchrl_logger.setLevel(logging.DEBUG)  # whatever RL_LOGGING_LEVEL set
+    # whatever RL_LOGGING_LEVEL set, and on after a hydra app in this process disabled it
+    torchrl_logger.setLevel(logging.DEBUG)
+    torchrl_logger.disabled = False
+    muted = logging.root.manager.disable
+    logging.disable(logging.NOTSET)
     try:
         sampler = TorchPrioritizedSampler(16, alpha=0.6, beta=0.4)
         torchrl_logger.warning(EXTENSION_WARNING)  # outside the constructor it still gets through
     finally:
         torchrl_logger.removeHandler(handler)
         torchrl_logger.setLevel(level)
+        torchrl_logger.disabled = disabled
+        logging.disable(muted)
     assert records == [EXTENSION_WARNING]
     assert torchrl_logger.filters == filters
     assert sampler._alpha == 0.6 and sampler._beta == 0.4  # TorchRL's arguments, unchanged
