@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import torch
 from tensordict import TensorDictBase
 from torchrl.data import Composite, Unbounded
 from torchrl.envs.transforms import Compose, RewardSum, Transform
@@ -44,6 +43,7 @@ class SumRewards(Transform):
         task_key: where the env's ``out_key`` is kept when it is a component.
 
     Examples:
+        >>> import torch
         >>> from tensordict import TensorDict
         >>> td = TensorDict({"next": {"reward": torch.ones(1), "penalty": -0.25 * torch.ones(1)}})
         >>> td = SumRewards(["reward", "penalty"])(td)
@@ -140,11 +140,10 @@ class SumRewards(Transform):
     def _reset(
         self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
     ) -> TensorDictBase:
-        spec = self.parent.full_reward_spec if self.parent is not None else None
+        # the moved components' observation specs (transform_output_spec): their zero at reset
+        observations = self.container.full_observation_spec
         for key in self.moved:
-            shape = spec[key].shape if spec is not None and key in spec.keys() else (1,)
-            shape = tensordict_reset.batch_size + shape[len(tensordict_reset.batch_size) :]
-            tensordict_reset.set(key, torch.zeros(shape, device=tensordict_reset.device))
+            tensordict_reset.set(key, observations[key].zero())
         return tensordict_reset
 
     def transform_output_spec(self, output_spec: Composite) -> Composite:
