@@ -1,4 +1,4 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export,calibration}``.
+"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export,calibration,forces}``.
 
 Each subcommand is a module's ``main(argv, prog)`` (:mod:`gentlerl.apps`, :mod:`gentlerl.analysis`);
 ``gentlerl COMMAND --help`` prints that command's options with their defaults. Modules are imported
@@ -34,6 +34,10 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "calibration": (
         "gentlerl.apps.calibration",
         "each critic head's predicted Q vs realised return",
+    ),
+    "forces": (
+        "gentlerl.apps.forces",
+        "an env's contact forces and the force unit the tolerance rule gives it",
     ),
 }
 
