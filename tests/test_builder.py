@@ -36,3 +36,14 @@ def test_parts_fit_together():
     writer, rb, schedule = builder.make_replay(total_updates=10)
     assert writer.rb is rb and (rb.transform is None or not len(rb.transform))
     assert schedule is not None and writer.n_steps == 5
+
+
+def test_the_penalty_surprise_head_gets_its_own_per_step_bound():
+    # r^sp's head spans +-3 x the discounted horizon of the env's episode (gamma 0.99).
+    builder = AgentBuilder(make_config(**TINY), ToyHandEnv())
+    horizon = (1 - 0.99**builder.horizon) / 0.01
+    base = builder.head_supports()
+    cfg = make_config(**{**TINY, "network": {**TINY["network"], "penalty_surprise_bound": 3.0}})
+    lows, highs = AgentBuilder(cfg, ToyHandEnv()).head_supports()
+    assert (lows[:2], highs[:2]) == (base[0][:2], base[1][:2])  # task and penalty unchanged
+    assert lows[2] == -highs[2] and abs(highs[2] - 3.0 * horizon) < 1e-9

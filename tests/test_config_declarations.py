@@ -97,7 +97,8 @@ OLD_RANGES = {
     **dict.fromkeys(
         (
             "learner.lr_actor learner.lr_critic gentleness.lr_model collector.cpus_per_worker "
-            "collector.memory_per_worker_gb network.dense_reward_bound env.force_scale"
+            "collector.memory_per_worker_gb network.dense_reward_bound env.force_scale "
+            "network.penalty_surprise_bound"
         ).split(),
         "> 0",
     ),

@@ -14,6 +14,7 @@ from gentlerl.functional import (
     gaussian_nll_parts,
     impact,
     impact_penalty,
+    information_gain,
     mixture_moments,
     penalty_surprise,
     torque_penalty,
@@ -217,3 +218,14 @@ def test_gaussian_nll_and_mixture_of_non_finite_inputs_are_not_finite(bad):
     assert not torch.isfinite(gaussian_nll(one, mean, var))
     mean, var = mixture_moments(torch.ones(2, 1), torch.tensor([[1.0], [bad]]))
     assert not torch.isfinite(gaussian_nll(one, mean, var))
+
+
+def test_information_gain_is_zero_when_the_members_agree_and_grows_with_their_disagreement():
+    var = torch.full((4, 3), 0.5)
+    agree = torch.ones(4, 3)
+    torch.testing.assert_close(information_gain(agree, var), torch.zeros(3))
+    # Means -1, 1, -1, 1: epistemic 1, aleatoric 0.5 -> 1/2 log(1 + 1 / 0.5) = 1/2 log 3.
+    split = torch.tensor([-1.0, 1.0, -1.0, 1.0]).unsqueeze(-1).expand(4, 3)
+    torch.testing.assert_close(information_gain(split, var), torch.full((3,), 0.5 * math.log(3)))
+    # Same disagreement, wider members: less to learn.
+    assert (information_gain(split, 4 * var) < information_gain(split, var)).all()

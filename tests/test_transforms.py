@@ -15,7 +15,7 @@ from torchrl.envs.utils import check_env_specs
 from gentlerl import keys
 from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.config import GentlenessConfig
-from gentlerl.functional import gaussian_nll, mixture_moments
+from gentlerl.functional import gaussian_nll, information_gain, mixture_moments
 from gentlerl.transforms import DynamicsSurprise, ImpactPenalty, PenaltySurprise
 from tests.toy_env import ToyHandEnv
 
@@ -338,6 +338,30 @@ def test_penalty_surprise_sources_add_up_to_the_paid_reward():
     torch.testing.assert_close(parts["aleatoric"] + parts["epistemic"], s2)
     with pytest.raises(ValueError, match="penalty"):
         surprise.sources(batch.exclude(("next", keys.PENALTY)))
+
+
+def test_penalty_surprise_information_gain_reads_the_members_disagreement():
+    # kind="information_gain": r^sp = a'(s I - r^f), I = 1/2 log(sigma*^2 / mean sigma_i^2);
+    # its sources say the same, and the NLL diagnostics stay those of the mixture.
+    stack = make_reward_transforms(
+        "r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3, lam_prime=(2.0, 3.0),
+        surprise_scale=0.5, surprise_kind="information_gain",
+    )  # fmt: skip
+    stack.step(0)
+    batch = stack.transform(_pressing_rollout(ToyHandEnv()))
+    penalty = batch["next", keys.PENALTY]
+    hit = penalty < 0
+    mean, var = stack.losses["penalty"].predict_target(batch)
+    gain = information_gain(mean, var)
+    a = torch.sigmoid(2.0 * (3.0 + penalty))
+    rsp = batch["next", keys.PENALTY_SURPRISE]
+    torch.testing.assert_close(rsp[hit], (a * (0.5 * gain - penalty))[hit])
+    assert (rsp[~hit] == 0).all()
+    parts = stack.transform[1].sources(batch)
+    torch.testing.assert_close((parts["curiosity"] + parts["refund"])[hit], rsp[hit])
+    with pytest.raises(ValueError, match="kind must be one of"):
+        PenaltySurprise(stack.losses["penalty"].model, stack.losses["penalty"].target_model_params,
+                        kind="entropy")  # fmt: skip
 
 
 def test_penalty_surprise_reads_the_model_on_penalty_rows_only(monkeypatch):

@@ -63,6 +63,18 @@ def test_dense_heads_get_a_horizon_wide_support_the_task_keeps_its_own():
         head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=0.0)
 
 
+def test_a_head_named_in_spans_gets_its_own_the_others_keep_the_dense_one():
+    heads = reward_keys("r+rf+rsp")
+    spans = {keys.PENALTY_SURPRISE: 259.8}
+    lows, highs = head_supports(
+        heads, v_min=-10.0, v_max=10.0, bounded=True, dense_span=86.6, spans=spans
+    )
+    assert lows == [-10.0, -86.6, -259.8] and highs == [10.0, 0.0, 259.8]
+    for bad in ({keys.PENALTY_SURPRISE: -1.0}, {"bonus": 1.0}):
+        with pytest.raises(ValueError, match="spans must map"):
+            head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, spans=bad)
+
+
 def test_learned_components_name_their_model():
     built = {k: c.model for k, c in COMPONENTS.items() if c.build is not None}
     assert built == {

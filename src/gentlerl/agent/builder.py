@@ -88,22 +88,20 @@ class AgentBuilder:
     def head_supports(self) -> tuple[list[float], list[float]]:
         """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.agent.variants.head_supports`.
 
-        A dense head spans ``network.dense_reward_bound`` x the discounted horizon of
+        A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
+        ``network.penalty_surprise_bound`` where set) x the discounted horizon of
         ``time_limit`` steps (the largest return of a reward of that size at every step).
         """
         net = self.cfg.network
-        bound = net.dense_reward_bound
-        span = (
-            None
-            if bound is None
-            else bound * discounted_horizon(self.cfg.learner.gamma, self.horizon)
-        )
+        horizon = discounted_horizon(self.cfg.learner.gamma, self.horizon)
+        bound, rsp = net.dense_reward_bound, net.penalty_surprise_bound
         return head_supports(
             self.reward_keys,
             v_min=net.v_min,
             v_max=net.v_max,
             bounded=net.bounded_support,
-            dense_span=span,
+            dense_span=None if bound is None else bound * horizon,
+            spans=None if rsp is None else {keys.PENALTY_SURPRISE: rsp * horizon},
         )
 
     def make_intrinsic_rewards(self) -> IntrinsicRewards:

@@ -132,6 +132,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         lam_prime=s.lam_prime,
         scale=s.surprise_scale,
         nll_floor=s.surprise_nll_floor,
+        kind=s.surprise_kind,
     )
     return Part(transform, loss, updater)
 
@@ -221,6 +222,7 @@ def head_supports(
     v_max: float,
     bounded: bool,
     dense_span: float | None = None,
+    spans: Mapping[str, float] | None = None,
 ) -> tuple[list[float], list[float]]:
     """``(v_min, v_max)`` of each head's support: the critic owns one support per head.
 
@@ -230,17 +232,23 @@ def head_supports(
       set gets ``[-dense_span, dense_span]``: its return sums a reward paid at every step, so
       its support scales with the horizon (``dense_span`` = per-step bound x
       :func:`discounted_horizon`), while the task's return is one terminal reward and keeps
-      the finer ``[v_min, v_max]``;
+      the finer ``[v_min, v_max]``; a dense reward named in ``spans`` gets
+      ``[-spans[key], spans[key]]`` instead (its own per-step size, e.g. the penalty surprise);
     - with ``bounded``, a head whose reward is never above :attr:`Component.upper_bound` tops
       there (0 for penalties); a head whose bottom would then not lie below its top keeps its
       own bottom and the bound is not applied.
     """
     if dense_span is not None and not dense_span > 0:
         raise ValueError(f"dense_span must be > 0 (or None), got {dense_span}")
+    spans = dict(spans or {})
+    bad = {k: v for k, v in spans.items() if k not in COMPONENTS or not v > 0}
+    if bad:
+        raise ValueError(f"spans must map reward keys of {sorted(COMPONENTS)} to > 0, got {bad}")
     lows, highs = [], []
     for key in reward_keys:
         component = COMPONENTS[key]
-        lo, hi = (-dense_span, dense_span) if component.dense and dense_span else (v_min, v_max)
+        span = spans.get(key, dense_span)
+        lo, hi = (-span, span) if component.dense and span else (v_min, v_max)
         bound = component.upper_bound
         if bounded and bound is not None and lo < bound:
             hi = min(hi, bound)

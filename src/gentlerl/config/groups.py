@@ -210,6 +210,12 @@ class NetworkConfig:
         "(1 - gamma^T) / (1 - gamma); null: every head gets [v_min, v_max]",
         bounds="> 0",
     )
+    penalty_surprise_bound: float | None = setting(
+        None,
+        "per-step size of r^sp for its head's support (the same horizon factor); null: "
+        "dense_reward_bound",
+        bounds="> 0",
+    )
 
 
 @dataclass
@@ -256,6 +262,12 @@ class GentlenessConfig:
     # the NLL of contact steps stayed near +1 at 30k frames either way.
     surprise_nll_floor: float | None = setting(
         None, "floor of the penalty-surprise NLL (null: eq. 8)"
+    )
+    surprise_kind: str = setting(
+        "nll",
+        "what r^sp's curiosity reads: nll (eq. 8) or information_gain (the penalty ensemble's "
+        "disagreement, which fades as it learns)",
+        choices=("nll", "information_gain"),
     )
     recompute_surprise: bool = setting(
         True, "recompute r^sp of each sampled n-step transition with the current target model"

@@ -198,6 +198,31 @@ def gaussian_nll_parts(
     return 0.5 * (_LOG_2PI + var.log()), 0.5 * (x - mean).pow(2) / var
 
 
+def information_gain(mean: torch.Tensor, var: torch.Tensor, dim: int = 0) -> torch.Tensor:
+    r"""What observing the outcome would teach the ensemble, in nats (beyond the paper).
+
+    .. math::
+        I = \tfrac12 \log \frac{\sigma^2_*}{\bar\sigma^2}
+          = \tfrac12 \log\Big(1 + \frac{\tfrac1M\sum_i (\mu_i - \mu_*)^2}{\tfrac1M\sum_i \sigma_i^2}\Big),
+
+    the Gaussian approximation of the mutual information between the outcome and the member
+    that predicts it: the mixture's variance :math:`\sigma^2_*` (eq. 5) over the members' mean
+    variance :math:`\bar\sigma^2`. It is 0 when the members agree (only the aleatoric spread is
+    left, which no data removes) and grows with their disagreement (the epistemic part), which
+    shrinks as the model sees more of the same contacts: a surprise that fades. Unlike the NLL
+    it does not read the outcome, so a model that is miscalibrated but unanimous pays nothing.
+
+    Args:
+        mean, var: member means and variances, ensemble members along ``dim``.
+
+    Returns:
+        ``[...]`` with ``dim`` reduced, >= 0 (NaN where an input is).
+    """
+    mu_star, var_star = mixture_moments(mean, var, dim)
+    aleatoric = _floor(var.mean(dim), 1e-6)
+    return 0.5 * (_floor(var_star, 1e-6) / aleatoric).log()
+
+
 def penalty_surprise(
     penalty: torch.Tensor, nll: torch.Tensor, lam1: float = 2.0, lam2: float = 2.0
 ) -> torch.Tensor:

@@ -19,10 +19,14 @@ from gentlerl.functional import (
     acceptability,
     gaussian_nll,
     gaussian_nll_parts,
+    information_gain,
     mixture_moments,
     penalty_surprise,
 )
 from gentlerl.transforms.base import ModelRewardTransform
+
+#: What the curiosity part of r^sp reads (:class:`PenaltySurprise` ``kind``).
+SURPRISE_KINDS = ("nll", "information_gain")
 
 if TYPE_CHECKING:  # the models are passed in; transforms import no model code
     from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
@@ -87,6 +91,12 @@ class PenaltySurprise(ModelRewardTransform):
             equation (``None``) makes a *well*-predicted small penalty cost ``a' * nll < 0``, so
             once the penalty model is accurate, gentle contact is punished; a floor of 0 keeps the
             surprise a bonus ("erroneous predictions deliver a small positive reward").
+        kind: what the curiosity part reads (:data:`SURPRISE_KINDS`): ``"nll"``, eq. 8's
+            :math:`-\log \mathcal{N}(r^f_t \mid \mu_*, \sigma^2_*)`; ``"information_gain"``,
+            the ensemble's disagreement :func:`~gentlerl.functional.information_gain` in its
+            place (beyond the paper: the NLL of a wide or over-sure but unanimous model does not
+            fade as the model learns, docs/REPRODUCTION.md; the disagreement does). The refund
+            :math:`-a' r^f` is kept either way; ``nll_floor`` applies to ``"nll"`` only.
     """
 
     def __init__(
@@ -97,6 +107,7 @@ class PenaltySurprise(ModelRewardTransform):
         lam_prime: tuple[float, float] = (2.0, 2.0),
         scale: float = 1.0,
         nll_floor: float | None = None,
+        kind: str = "nll",
         penalty_key: str = keys.PENALTY,
         out_key: str = keys.PENALTY_SURPRISE,
     ) -> None:
@@ -104,12 +115,26 @@ class PenaltySurprise(ModelRewardTransform):
             raise ValueError(f"lam_prime[0] (sigmoid steepness) must be >= 0, got {lam_prime}")
         if not scale >= 0:
             raise ValueError(f"scale must be >= 0, got {scale}")
+        if kind not in SURPRISE_KINDS:
+            raise ValueError(f"kind must be one of {SURPRISE_KINDS}, got {kind!r}")
         in_keys = [model.obs_key, model.action_key, penalty_key]
         super().__init__(model, params, out_key, 1.0, in_keys)
         self.nll_scale = float(scale)
         self.penalty_key = penalty_key
         self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
         self.nll_floor = nll_floor
+        self.kind = kind
+
+    def _curiosity(
+        self, penalty: torch.Tensor, mean: torch.Tensor, var: torch.Tensor
+    ) -> torch.Tensor:
+        """The surprise inside eq. 8, before ``scale``: the (floored) NLL of ``penalty`` under
+        the members' mixture, or their information gain (:attr:`kind`)."""
+        if self.kind == "information_gain":
+            return information_gain(mean, var, dim=0)
+        mu, sigma2 = mixture_moments(mean, var, dim=0)
+        nll = gaussian_nll(penalty, mu, sigma2)
+        return nll if self.nll_floor is None else nll.clamp_min(self.nll_floor)
 
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
@@ -133,12 +158,9 @@ class PenaltySurprise(ModelRewardTransform):
         if index.numel():
             model_in = tensordict.select(self.model.obs_key, self.model.action_key)
             mean, var = self.predict(model_in.reshape(-1)[index])
-            mu, sigma2 = mixture_moments(mean, var, dim=0)
             hit = flat[index].unsqueeze(-1)
-            nll = gaussian_nll(hit, mu, sigma2)
-            if self.nll_floor is not None:
-                nll = nll.clamp_min(self.nll_floor)
-            values = penalty_surprise(hit, self.nll_scale * nll, *self.lam_prime)
+            curiosity = self._curiosity(hit, mean, var)
+            values = penalty_surprise(hit, self.nll_scale * curiosity, *self.lam_prime)
             surprise[index] = values.squeeze(-1)
         return {self.out_keys[0]: self._gate(surprise.reshape(penalty.shape))}
 
@@ -146,8 +168,8 @@ class PenaltySurprise(ModelRewardTransform):
         r"""Where each step's :math:`r^{s_p}` comes from, under :attr:`params` (diagnostics).
 
         Per step, ``[..., 1]``: ``penalty`` :math:`r^f`, ``a_prime`` :math:`a'`, ``curiosity``
-        :math:`a' s\,\mathrm{nll}` (the NLL floored as in :meth:`compute`) and ``refund``
-        :math:`-a' r^f`, both gated as the reward is (0 before the switch), so that on a contact
+        :math:`a' s\,\mathrm{nll}` (the NLL floored as in :meth:`compute`, or the information
+        gain, :attr:`kind`) and ``refund`` :math:`-a' r^f`, both gated as the reward is (0 before the switch), so that on a contact
         step :math:`r^{s_p}` = curiosity + refund; the (unfloored) NLL's ``spread`` and ``error``
         terms (:func:`~gentlerl.functional.gaussian_nll_parts`) and the mixture's variance (eq. 5)
         split into ``aleatoric`` (the members' mean variance) and ``epistemic`` (the variance of
@@ -157,14 +179,12 @@ class PenaltySurprise(ModelRewardTransform):
         mean, var = self.predict(tensordict)
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         spread, error = gaussian_nll_parts(penalty, mu, sigma2)
-        nll = spread + error
-        if self.nll_floor is not None:
-            nll = nll.clamp_min(self.nll_floor)
         weight = acceptability(-penalty, *self.lam_prime)
+        curiosity = self._curiosity(penalty, mean, var)
         return {
             "penalty": penalty,
             "a_prime": weight,
-            "curiosity": self._gate(weight * self.nll_scale * nll),
+            "curiosity": self._gate(weight * self.nll_scale * curiosity),
             "refund": self._gate(-weight * penalty),
             "spread": spread,
             "error": error,
