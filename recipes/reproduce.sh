@@ -30,6 +30,10 @@
 # (gentleness.recompute_surprise=false: r^sp as stored at collection). no-nll-floor
 # (gentleness.surprise_nll_floor=null) was the third amendment's ablation of the floor at 0 and is
 # the same as `changes` today; nll-floor (gentleness.surprise_nll_floor=0) puts that floor back.
+# Method II (docs/REPRODUCTION.md, ninth amendment): rsp-bound (network.penalty_surprise_bound=3:
+# r^sp's head spans +-3 per step x the horizon), information-gain
+# (gentleness.surprise_kind=information_gain: r^sp's curiosity is the penalty ensemble's
+# disagreement), method2 (both).
 #
 # Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/REPRODUCTION.md (measured there).
 #
@@ -85,8 +89,13 @@ case "$method" in
   no-support-cap) extra+=(--set network.bounded_support=false) ;;
   episodic) extra+=(--set learner.episodic_intrinsic=true) ;;
   unscaled-rs) extra+=(--set gentleness.dynamics_surprise_scale=1) ;;
+  rsp-bound) extra+=(--set network.penalty_surprise_bound=3) ;;
+  information-gain) extra+=(--set gentleness.surprise_kind=information_gain) ;;
+  method2) extra+=(--set network.penalty_surprise_bound=3
+                   --set gentleness.surprise_kind=information_gain) ;;
   *) echo "--method must be changes, published, no-nll-floor, nll-floor, no-support-cap, episodic," \
-       "unscaled-rs, shared-support or no-recompute, got $method" >&2; exit 2 ;;
+       "unscaled-rs, shared-support, no-recompute, rsp-bound, information-gain or method2," \
+       "got $method" >&2; exit 2 ;;
 esac
 for sweep in ${sweeps_run//,/ }; do
   case "$sweep" in

@@ -135,3 +135,15 @@ def test_the_published_method_switches_off_every_cpu_scale_change_as_the_paper_p
     for method, key in ablations.items():
         assert _method_settings(method) == {key: published[key]}, method
     assert _method_settings("nll-floor") == {"gentleness.surprise_nll_floor": "0"}
+
+
+def test_method_two_is_its_two_changes_and_each_is_a_valid_setting():
+    bound, gain = _method_settings("rsp-bound"), _method_settings("information-gain")
+    assert bound == {"network.penalty_surprise_bound": "3"}
+    assert gain == {"gentleness.surprise_kind": "information_gain"}
+    assert _method_settings("method2") == {**bound, **gain}
+    cfg = make_config(network={"penalty_surprise_bound": 3.0},
+                      gentleness={"surprise_kind": "information_gain"})  # fmt: skip
+    assert (cfg.network.penalty_surprise_bound, cfg.gentleness.surprise_kind) == (
+        3.0, "information_gain",
+    )  # fmt: skip
