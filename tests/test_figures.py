@@ -191,3 +191,21 @@ def test_final_impacts_are_chosen_per_panel_when_hand_and_external_runs_mix(tmp_
     }
     assert legends["ext:spin: r"].startswith("r: 2 of 2")  # every rollout: no success outcome
     assert legends["touch: r"].startswith("r: 1 successful of 2")  # the hand's Fig. 5 selection
+
+
+def test_return_vs_impact_draws_one_point_per_run_in_newtons(tmp_path, monkeypatch):
+    from gentlerl.analysis import figures
+
+    # Impacts logged in the scaled unit (env.force_scale 0.01): 6 and 7 read as 600 and 700 N.
+    run = _external_run(tmp_path, "r", 0, (0.0, 50.0, 140.0), [6.0, 7.0])
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    config["env"]["force_scale"] = 0.01
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    _external_run(tmp_path, "r+rf", 0, (0.0, 0.0, 10.0), [0.0, 0.0])
+    drawn = {}
+    monkeypatch.setattr(figures, "_save", lambda fig, path: drawn.setdefault("fig", fig))
+    figures.plot_return_vs_impact(find_runs([tmp_path]), tmp_path)
+    (ax,) = drawn["fig"].axes
+    points = sorted(tuple(c.get_offsets()[0]) for c in ax.collections)
+    assert points == [(0.0, 10.0), (650.0, 140.0)]  # (median max impact N, mean final return)
+    assert ax.get_ylabel() == "final mean return"

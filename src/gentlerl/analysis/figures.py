@@ -13,6 +13,9 @@ Draws what :mod:`gentlerl.analysis.runs` reads from run directories (or a sweep'
   env frames, one panel per claim, points with min-max bars (:mod:`gentlerl.analysis.curves`);
 - ``reward_components.png`` (paper Fig. 6) — mean of each reward component in the sampled
   batches vs frames, with a dashed line where the intrinsic rewards start;
+- ``return_vs_impact.png`` — one point per run: its final policy's success rate (return where the
+  env has no success outcome) against the median of its per-episode max impact in N (an external
+  env's ``env.force_scale`` undone), one panel per task, one colour per variant;
 - ``summary.csv`` / ``summary.md`` — :func:`gentlerl.analysis.summary.summary_table`, the same
   selections.
 """
@@ -155,6 +158,31 @@ def plot_reward_components(runs: Sequence[Run], out: Path) -> Path:
     return _save(fig, out / "reward_components.png")
 
 
+def plot_return_vs_impact(runs: Sequence[Run], out: Path) -> Path:
+    """One point per run: final-policy success (or mean return) vs median max impact (N)."""
+    tasks = sorted({str(r.task) for r in runs})
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.4), squeeze=False)
+    colours = {}
+    for ax, task in zip(axes.flat, tasks, strict=True):
+        group = [r for r in runs if str(r.task) == task]
+        by_success = judged_by_success(group)
+        for run in group:
+            rows, _ = final_policy_episodes(run)
+            if not len(rows):
+                continue
+            newtons = rows["max_impact"] / float(run.setting("env", "force_scale", 1.0) or 1.0)
+            # numpy.genfromtxt renames the column "return", a python keyword, to "return_".
+            y = np.nanmean(rows["success"] if by_success else rows["return_"])
+            colour = colours.setdefault(run.label, f"C{len(colours)}")
+            ax.scatter(np.median(newtons), y, color=colour, label=run.label, s=25)
+        handles, labels = ax.get_legend_handles_labels()
+        unique = dict(zip(labels, handles, strict=True))
+        ax.legend(unique.values(), unique.keys(), fontsize=7)
+        ylabel = "final success rate" if by_success else "final mean return"
+        ax.set(title=task, xlabel="median max impact per episode (N)", ylabel=ylabel)
+    return _save(fig, out / "return_vs_impact.png")
+
+
 def _first_on(series: Series | None) -> float | None:
     if series is None or not (series[1] > 0).any():
         return None
@@ -207,6 +235,7 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
         plot_final_impacts(runs, out),
         plot_learning_curves(runs, out),
         plot_reward_components(runs, out),
+        plot_return_vs_impact(runs, out),
     ]
     rows = summary_table(runs)
     tmp = out / ".summary.csv.tmp"
