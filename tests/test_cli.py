@@ -77,6 +77,7 @@ def test_plot_command_writes_the_figure_set(tmp_path, capsys):
         "final_impacts.png",
         "impact_histograms.png",
         "learning_curves.png",
+        "return_vs_impact.png",
         "reward_components.png",
         "summary.csv",
         "summary.md",
