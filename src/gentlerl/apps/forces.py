@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import torch
@@ -120,14 +121,10 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
         force_key = cfg.env.force if cfg.env.name is not None else keys.TOUCH
         factory = default_env_factory(cfg)
     elif env_name in TASKS:
-        from functools import partial
-
         from gentlerl.envs import make_env
 
         factory, force_key = partial(make_env, env_name, seed=seed), keys.TOUCH
     else:
-        from functools import partial
-
         from gentlerl.envs.external import check_name, make_external_env
 
         problems = check_name(env_name)
