@@ -23,9 +23,7 @@ import torch
 from gentlerl import keys
 from gentlerl.apps.parsing import command_parser
 from gentlerl.envs import TASKS
-
-#: Where an external env's force lands (:mod:`gentlerl.envs.external`); the hand writes ``touch``.
-FORCE = "force"
+from gentlerl.envs.external import FORCE  # where an external env's force lands; the hand: touch
 
 #: The hand task whose random-action contacts define the unit the paper's lambda is in.
 REFERENCE_TASK = "touch"
