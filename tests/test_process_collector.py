@@ -130,3 +130,31 @@ def test_training_with_the_process_collector_repeats_exactly(tmp_path):
 def test_overlap_choices(tmp_path, collector, problem):
     with pytest.raises(ValueError, match=problem):
         make_config(run_dir=str(tmp_path), collector=collector)
+
+
+@pytest.mark.parametrize(
+    ("where", "error"),
+    [("_receive", ConnectionResetError(104, "reset")), ("_send", BrokenPipeError(32, "broken"))],
+)
+def test_a_killed_child_is_named_whichever_way_the_pipe_fails(monkeypatch, where, error):
+    """A child killed while it writes resets the pipe (not EOF); one killed before a request
+    breaks it: both say how it ended, never a bare socket error."""
+    import os
+    import signal
+
+    from gentlerl.training import process_collector
+    from gentlerl.training.process_collector import CollectorDied
+
+    policy = make_exploration_policy(_constant_actor(), sigma=0.3, action_dim=20)
+    collector = ProcessCollector(_collector(), policy)
+    os.kill(collector._process.pid, signal.SIGKILL)
+
+    def fail(*args):
+        raise error
+
+    monkeypatch.setattr(process_collector, where, fail)
+    with pytest.raises(CollectorDied, match="^the collector process was killed by SIGKILL$"):
+        collector.set_seed(0)
+    monkeypatch.undo()
+    collector.shutdown()
+    assert _no_children_left()

@@ -136,17 +136,24 @@ class ProcessCollector:
         """The child's answer to the oldest open request; its error raised here."""
         try:
             status, result = _receive(self._conn)
-        except EOFError as err:
-            self._process.join(SHUTDOWN_TIMEOUT_S)  # its exit code is known once it is reaped
-            raise CollectorDied(_ended(self._process.exitcode)) from err
+        except (EOFError, OSError) as err:  # a closed pipe, or reset while it was writing
+            raise self._died() from err
         finally:
             self._open -= 1
         if status == "error":
             raise RuntimeError(f"the collector process failed:\n{result}")
         return result
 
+    def _died(self) -> CollectorDied:
+        """The error for a child that ended unasked, once it is reaped (its exit code known)."""
+        self._process.join(SHUTDOWN_TIMEOUT_S)
+        return CollectorDied(_ended(self._process.exitcode))
+
     def _request(self, command: str, arg: Any = None) -> None:
-        _send(self._conn, (command, arg))
+        try:
+            _send(self._conn, (command, arg))
+        except OSError as err:  # BrokenPipeError / ConnectionResetError: the child is gone
+            raise self._died() from err
         self._open += 1
 
     def set_seed(self, seed: int) -> int:
