@@ -1,5 +1,6 @@
 """Checkpoints: atomic writes, a full-state round trip, and resuming a SIGKILLed run."""
 
+import itertools
 import os
 import signal
 import subprocess
@@ -214,7 +215,8 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     proc.wait()
     assert ckpt.exists(), proc.stderr.read().decode()[-2000:]
     assert proc.returncode == -signal.SIGKILL and not (run_dir / "DONE").exists()
-    killed_at = load_checkpoint(ckpt)["counters"]["frames"]
+    killed = load_checkpoint(ckpt)
+    killed_at = killed["counters"]["frames"]
     assert 300 <= killed_at < 1600
     done = subprocess.run([*command, "resume=true"], env=env, capture_output=True, timeout=180)
     assert done.returncode == 0, done.stderr.decode()[-2000:]
@@ -231,6 +233,11 @@ def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
         int(r.split(",")[0]) for r in (run_dir / "logs/scalars/train/env_steps_per_s.csv").open()
     ]
     assert steps == list(range(100, 1601, 100))
+    # Training wall clock goes on from the checkpoint's: it never restarts at 0 on a resume.
+    walls = [float(r.split(",")[1]) for r in (run_dir / "logs/scalars/train/wall_s.csv").open()]
+    assert len(walls) == len(steps) and all(b > a for a, b in itertools.pairwise(walls))
+    assert walls[steps.index(killed_at)] == pytest.approx(killed["wall_s"], abs=1e-3)
+    assert state["wall_s"] == pytest.approx(walls[-1], abs=1e-3)
 
 
 def test_a_policy_saved_with_the_flat_config_of_older_versions_loads(tmp_path):

@@ -15,7 +15,7 @@ from gentlerl.analysis.runs import (
     seed_band,
     successful_final_impacts,
 )
-from gentlerl.analysis.summary import format_table, summary_table
+from gentlerl.analysis.summary import fade_ratio, format_table, summary_table, time_to_gentle
 
 EPISODES_HEADER = "frames,episode,success,broken,max_impact,return\n"
 
@@ -68,6 +68,49 @@ def test_summary_reports_the_fig3_and_fig5_selections(tmp_path):
     assert format_table([row]).splitlines()[2].startswith("| touch | rs | 2 | 0.62 | mixed | 6 |")
 
 
+def test_time_to_gentle_is_the_first_evaluation_that_succeeds_softly(tmp_path):
+    run0 = _fake_run(tmp_path, "r+rf+rsp", 0, 2.0, (0.0, 1.0, 1.0), [1.0])
+    run1 = _fake_run(tmp_path, "r+rf+rsp", 1, 2.0, (0.0, 0.0, 1.0), [1.0])
+    # 1000: fails; 2000: succeeds at a median 4 N (too hard); 3000: 0.8 at a median 2.5 N.
+    run0.joinpath("eval_episodes.csv").write_text(
+        EPISODES_HEADER
+        + "".join(f"1000,{i},0,0,0,0\n" for i in range(5))
+        + "".join(f"2000,{i},1,0,{m},1\n" for i, m in enumerate((3, 4, 5, 4, 4)))
+        + "".join(f"3000,{i},{int(i < 4)},0,{m},1\n" for i, m in enumerate((2, 2.5, 3.5, 9, 1)))
+    )
+    run0.joinpath("logs/scalars/train/wall_s.csv").write_text("1000,10\n2000,30\n4000,70\n")
+    # seed 1 logged no wall clock and, with its force in 0.5 N units, 5 units is 2.5 N.
+    run1.joinpath("config.yaml").write_text(
+        yaml.safe_dump(
+            {
+                **yaml.safe_load(run1.joinpath("config.yaml").read_text()),
+                "env": {"force_scale": 2.0},
+            }
+        )  # fmt: skip
+    )
+    run1.joinpath("eval_episodes.csv").write_text(EPISODES_HEADER + "2000,0,1,0,5,1\n")
+    assert time_to_gentle(load_run(run0)) == (3000.0, 50.0)  # 30 + (70 - 30) / 2
+    frames, seconds = time_to_gentle(load_run(run1))
+    assert frames == 2000.0 and np.isnan(seconds)
+    assert time_to_gentle(load_run(run0), impact_n=5.0) == (2000.0, 30.0)
+    assert all(np.isnan(time_to_gentle(load_run(run0), success=1.1)))
+    (row,) = summary_table(find_runs([tmp_path]))
+    assert row["seeds_gentle"] == 2 and row["gentle_frames"] == pytest.approx(2500)
+    assert row["gentle_wall_s"] == pytest.approx(50.0)  # the one seed with a wall clock
+
+
+def test_fade_ratio_compares_the_last_window_with_the_first_after_the_switch(tmp_path):
+    run = _fake_run(tmp_path, "rf+rsp", 0, 2.0, (0.0, 0.0, 0.0), [1.0])  # switch at 1500
+    path = run / "logs/scalars/train/penalty_surprise_per_contact_step.csv"
+    # Before the switch 0; the first 1000 frames after it 2.0 and 4.0, the last 1000: 1.0, 2.0.
+    path.write_text("1000,0\n1600,2\n2600,4\n3000,9\n4000,1\n4600,2\n")
+    assert fade_ratio(load_run(run), window=1000) == pytest.approx(1.5 / 3.0)
+    assert fade_ratio(load_run(run), window=10**6) == pytest.approx(1.0)  # one window: all
+    assert np.isnan(fade_ratio(load_run(run), name="train/none"))
+    (row,) = summary_table(find_runs([tmp_path]))
+    assert row["rsp_fade"] == pytest.approx(1.0)  # the default 5k window holds the whole run
+
+
 def test_a_variant_without_data_reads_nan_not_zero(tmp_path):
     _fake_run(tmp_path, "r", 0, 2.0, (0.0, 0.0, 0.0), [1.0])  # one rollout, before the switch
     (row,) = summary_table(find_runs([tmp_path]))
@@ -75,6 +118,8 @@ def test_a_variant_without_data_reads_nan_not_zero(tmp_path):
     for name in ("final_success", "final_successful_median_impact", "median_impact_after_switch"):
         assert np.isnan(row[name]), name
     assert row["rollouts_after_switch"] == 0 and np.isnan(row["touching_share_after_switch"])
+    assert row["seeds_gentle"] == 0 and np.isnan(row["gentle_frames"])
+    assert np.isnan(row["rsp_fade"])
 
 
 def test_seed_band_interpolates_on_a_common_grid():

@@ -91,7 +91,7 @@ def test_same_seed_same_losses_other_seed_other_losses(tmp_path):
 
 
 #: Scalars that measure speed, different in every run.
-TIMING = ("train/env_steps_per_s", "train/updates_per_s")
+TIMING = ("train/env_steps_per_s", "train/updates_per_s", "train/wall_s")
 
 
 def _logged_scalars(run_dir: Path) -> dict[str, list[tuple[int, float]]]:
@@ -168,6 +168,7 @@ def test_run_directory_follows_the_logging_contract(finished_run):
         "train/intrinsic_on",
         "train/updates_per_s",
         "train/env_steps_per_s",
+        "train/wall_s",
         "train/model_penalty",
     ]
     for name in names:

@@ -201,10 +201,16 @@ def _parse_episodes(path: str, mtime_ns: int, size: int) -> np.ndarray:
     return rows
 
 
+def in_loop_episodes(run: Run) -> np.ndarray:
+    """The rows of every in-loop evaluation of the run (``eval_episodes.csv``; its ``frames``
+    column says which evaluation); empty if none."""
+    return _episode_rows(run.layout.eval_episodes)
+
+
 def final_eval_episodes(run: Run) -> np.ndarray:
     """The rows of the run's last in-loop evaluation (``eval_episodes.csv``, the one at
     ``total_frames``: the final policy); empty if none."""
-    rows = _episode_rows(run.layout.eval_episodes)
+    rows = in_loop_episodes(run)
     return rows[rows["frames"] == rows["frames"].max()] if len(rows) else rows
 
 

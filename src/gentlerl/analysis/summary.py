@@ -12,6 +12,9 @@ numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
   :func:`gentlerl.analysis.runs.after_intrinsic_start`); impact columns over the touching ones (max
   impact > 0), in N.
 - ``mean_eval_success``, ``seeds_reaching_0.8``, ``first_0.8_frames``: the in-loop evaluations.
+- ``seeds_gentle``, ``gentle_frames``, ``gentle_wall_s``: the time to a gentle policy
+  (:func:`time_to_gentle`), the mean over the seeds that reached one.
+- ``rsp_fade``: whether the penalty surprise fades (:func:`fade_ratio`), the median over seeds.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from gentlerl.analysis.runs import (
     final_policy_episodes,
     final_sources,
     group_runs,
+    in_loop_episodes,
     intrinsic_start,
     successful_final_impacts,
 )
@@ -41,8 +45,67 @@ def _first_success(run: Run, threshold: float = 0.8) -> float:
     return float(hits[0]) if len(hits) else NAN
 
 
+#: A gentle policy (the throughput headline): an in-loop evaluation whose episodes succeed at
+#: least this often ...
+GENTLE_SUCCESS = 0.8
+#: ... at a median per-episode max impact of at most this many newtons.
+GENTLE_IMPACT_N = 3.0
+
+
+def time_to_gentle(
+    run: Run, success: float = GENTLE_SUCCESS, impact_n: float = GENTLE_IMPACT_N
+) -> tuple[float, float]:
+    """``(frames, wall seconds)`` at the run's first in-loop evaluation whose episodes succeed
+    at a mean rate >= ``success`` with a median per-episode max impact <= ``impact_n`` newtons
+    (the env's ``env.force_scale`` undone); ``(nan, nan)`` if none did.
+
+    The seconds are the run's training wall clock at that frame (``train/wall_s``: set-up
+    excluded, the time before a resume included); nan for a run logged before it existed. A
+    task without a success outcome (an external env) never reaches a gentle policy.
+
+    Example: evaluations at 5k (success 1.0, median 4.1 N) and 10k (0.8, 2.5 N) -> 10k frames.
+    """
+    rows = in_loop_episodes(run)
+    newtons = float(run.setting("env", "force_scale", 1.0) or 1.0)
+    for frame in np.unique(rows["frames"]) if len(rows) else ():
+        at = rows[rows["frames"] == frame]
+        if at["success"].mean() >= success and np.median(at["max_impact"]) / newtons <= impact_n:
+            wall = run.scalars.get("train/wall_s")
+            seconds = float(np.interp(frame, *wall)) if wall is not None and len(wall[0]) else NAN
+            return float(frame), seconds
+    return NAN, NAN
+
+
+#: The logged mean r^sp per contact step (recomputed at sampling), which :func:`fade_ratio` reads.
+RSP_PER_CONTACT = "train/penalty_surprise_per_contact_step"
+
+
+def fade_ratio(run: Run, name: str = RSP_PER_CONTACT, window: float = 5000.0) -> float:
+    """How much of a reward is left at the end: the mean of the scalar ``name`` over the run's
+    last ``window`` frames over its mean over the first ``window`` frames after the intrinsic
+    rewards switch on (:func:`~gentlerl.analysis.runs.intrinsic_start`); nan without data or
+    with a first mean of 0. 0.5 means it halved. Example: 2.0 for 5k frames, later 1.0 -> 0.5.
+    """
+    frames, values = run.scalars.get(name, (np.zeros(0), np.zeros(0)))
+    on = frames > intrinsic_start(run)
+    frames, values = frames[on], values[on]
+    if not len(frames):
+        return NAN
+    first = values[frames <= frames[0] + window]
+    last = values[frames > frames[-1] - window]
+    return float(last.mean() / first.mean()) if first.mean() != 0 else NAN
+
+
 def _share(part: int, whole: int) -> float:
     return part / whole if whole else NAN  # no rollouts: undefined, not 0
+
+
+def _finite(values: np.ndarray) -> np.ndarray:
+    return values[np.isfinite(values)]
+
+
+def _mean(values: np.ndarray) -> float:
+    return float(np.mean(values)) if len(values) else NAN
 
 
 def _median(values: np.ndarray) -> float:
@@ -107,6 +170,8 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
         evals = [r.scalars[EVAL_SUCCESS][1] for r in group if EVAL_SUCCESS in r.scalars]
         first = np.array([_first_success(r) for r in group])
         reached = first[~np.isnan(first)]
+        gentle = np.array([time_to_gentle(r) for r in group]).reshape(-1, 2)
+        gentle = gentle[~np.isnan(gentle[:, 0])]
         rows.append(
             {
                 "task": task,
@@ -116,6 +181,10 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
                 "mean_eval_success": float(np.mean([e.mean() for e in evals])) if evals else NAN,
                 "seeds_reaching_0.8": len(reached),
                 "first_0.8_frames": float(reached.mean()) if len(reached) else NAN,
+                "seeds_gentle": len(gentle),
+                "gentle_frames": float(gentle[:, 0].mean()) if len(gentle) else NAN,
+                "gentle_wall_s": _mean(_finite(gentle[:, 1])),
+                "rsp_fade": _median(_finite(np.array([fade_ratio(r) for r in group]))),
                 **after_switch_columns(group),
             }
         )

@@ -12,6 +12,7 @@ start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections import defaultdict
 from typing import Any
 
@@ -70,6 +71,7 @@ class Trainer:
         self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
         self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
+        self.wall_s = 0.0  # training wall clock, resumes included (``train/wall_s``)
         self.eval_history: list[dict[str, float]] = []
         self.best_eval: dict[str, float] | None = None
 
@@ -125,6 +127,7 @@ class Trainer:
             force_unit(cfg.env.force_scale),
         )  # fmt: skip
         pending: dict[str, list[float]] = defaultdict(list)
+        start, wall = time.perf_counter(), self.wall_s  # resumed: the time before it too
         for batch in collector:
             batch = self._rewarded(batch)
             for episode in progress.finished_episodes(batch):
@@ -134,8 +137,9 @@ class Trainer:
                 self._earn_updates(batch.numel(), pending)
                 next_sync = self._sync_policy(collector, next_sync)
             self._log_training(logger, pending)
+            self.wall_s = wall + time.perf_counter() - start
             fps = progress.env_steps_per_s(c["frames"])
-            logger.log({"train/env_steps_per_s": fps}, c["frames"])
+            logger.log({"train/env_steps_per_s": fps, "train/wall_s": self.wall_s}, c["frames"])
             if _crossed(c["frames"], batch.numel(), cfg.logging.eval_every_frames):
                 self._evaluate(logger, eval_env)
             if _crossed(c["frames"], batch.numel(), cfg.logging.checkpoint_every_frames):
@@ -266,6 +270,7 @@ class Trainer:
             "model_rb": replay_buffer_state(buffer) if buffer is not None else None,
             "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
             "counters": dict(self.counters),
+            "wall_s": self.wall_s,
             "eval_history": list(self.eval_history),
             "best_eval": self.best_eval,
             "rng": rng_state(),
@@ -283,6 +288,7 @@ class Trainer:
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
         self.counters = dict(state["counters"])
+        self.wall_s = float(state.get("wall_s", 0.0))  # absent in checkpoints before it
         self.eval_history = list(state["eval_history"])
         self.best_eval = state["best_eval"]
         set_rng_state(state["rng"])
