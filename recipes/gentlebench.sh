@@ -4,6 +4,9 @@
 #
 #   bash recipes/gentlebench.sh [--workers N] [--out DIR] [--figures DIR] [--episodes N]
 #                               [--tasks finger_turn_easy,finger_spin,hopper_stand] [--only KEY=V1,V2 ...]
+#                               [--set KEY=VALUE ...]  (config overrides on every run, e.g. Method II:
+#                               --set gentleness.surprise_kind=information_gain
+#                               --set network.penalty_surprise_bound=3 --out runs/gentlebench-method2)
 #
 # Grids: recipes/sweeps/gentlebench/gentlebench_<task>.yaml, each `r`, `r+rf`, `r+rf+rsp` x seeds
 # 0-2 at 30k env steps (30 episodes of 1000 steps; 5k random first, the curiosity rewards on after
@@ -15,7 +18,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-workers=2 out=runs/gentlebench figures=figs/gentlebench episodes=10 only=()
+workers=2 out=runs/gentlebench figures=figs/gentlebench episodes=10 only=() sets=()
 tasks=finger_turn_easy,finger_spin,hopper_stand
 while (($#)); do
   case "$1" in
@@ -25,6 +28,7 @@ while (($#)); do
     --episodes) episodes=$2; shift 2 ;;
     --tasks) tasks=$2; shift 2 ;;
     --only) only+=(--only "$2"); shift 2 ;;
+    --set) sets+=(--set "$2"); shift 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -32,7 +36,8 @@ done
 for task in ${tasks//,/ }; do
   gentlerl sweep "recipes/sweeps/gentlebench/gentlebench_$task.yaml" --workers "$workers" \
     --out "$out" --set logging.progress=false --set logging.wandb_mode=disabled \
-    --set logging.checkpoint_buffer=false --set logging.checkpoint_every_frames=10000 "${only[@]}"
+    --set logging.checkpoint_buffer=false --set logging.checkpoint_every_frames=10000 \
+    "${sets[@]}" "${only[@]}"
 done
 for task in ${tasks//,/ }; do
   for run in "$out/gentlebench_$task"/*/; do
