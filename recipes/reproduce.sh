@@ -127,7 +127,10 @@ for sweep in ${sweeps_run//,/ }; do
   python -m gentlerl plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
   # Shipped policies: the final actor of each touch / fragile run (r+rf+rsp at the primary
   # lambda'_2 of docs/REPRODUCTION.md) as $policies/<task>/<variant>/seed<k>.pt.
-  python -m gentlerl export "$dir/$sweep" --out "$policies"
+  # The no-reward grid trains no task policy to ship.
+  if [ "$sweep" != fig3_noreward_impacts ]; then
+    python -m gentlerl export "$dir/$sweep" --out "$policies"
+  fi
 done
 python -m gentlerl claims "$dir" --final-evals "$figures/$scale/$method" \
   --markdown "$figures/$scale/$method/claims.md"
