@@ -1,7 +1,19 @@
 """Test-session settings and shared fixtures."""
 
+import atexit
+import os
+import shutil
+import tempfile
+
 import pytest
 import torch
+
+# A compile cache of this session's own: inductor's on-disk cache key ignores
+# ATEN_CPU_CAPABILITY, so a suite run with ATEN_CPU_CAPABILITY=default (CI's second pass) after an
+# AVX2 run loaded AVX2 kernels and failed to build them ("'at::vec' has not been declared").
+if "TORCHINDUCTOR_CACHE_DIR" not in os.environ:
+    os.environ["TORCHINDUCTOR_CACHE_DIR"] = tempfile.mkdtemp(prefix="gentlerl-inductor-")
+    atexit.register(shutil.rmtree, os.environ["TORCHINDUCTOR_CACHE_DIR"], ignore_errors=True)
 
 # One thread: on the 2-core CI machine, two torch threads contend with the env and with
 # collector / ParallelEnv worker processes and made the model-training tests ~20x slower.
