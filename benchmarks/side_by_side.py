@@ -52,8 +52,9 @@ def run_rounds(
                 raise RuntimeError(f"{name}: the worker did not start ({cmd})")
             print(f"{name}: set up and warmed up in {time.perf_counter() - start:.0f} s")
         rates: dict[str, list[float]] = {name: [] for name in workers}
-        for _ in range(rounds):
-            for name, worker in workers.items():
+        for r in range(rounds):  # every other round backwards: no process is always first
+            for name in list(workers) if r % 2 == 0 else reversed(list(workers)):
+                worker = workers[name]
                 worker.stdin.write("go\n")
                 worker.stdin.flush()
                 rates[name].append(float(worker.stdout.readline()))
