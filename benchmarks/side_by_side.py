@@ -34,13 +34,17 @@ def revision_src(rev: str) -> Iterator[str]:
 
 
 def run_rounds(
-    script: Path, runs: Mapping[str, tuple[Sequence[str], str]], rounds: int
+    script: Path,
+    runs: Mapping[str, tuple[Sequence[str], str]],
+    rounds: int,
+    envs: Mapping[str, Mapping[str, str]] | None = None,
 ) -> dict[str, list[float]]:
-    """``{name: [rate per round]}`` of ``python script *args`` with ``PYTHONPATH=src``, per run."""
+    """``{name: [rate per round]}`` of ``python script *args`` with ``PYTHONPATH=src``, per run
+    (and the run's variables of ``envs``, e.g. a library's knobs, in its environment)."""
     workers = {}
     try:
         for name, (args, src) in runs.items():
-            env = {**os.environ, "PYTHONPATH": src}
+            env = {**os.environ, **(envs or {}).get(name, {}), "PYTHONPATH": src}
             cmd = [sys.executable, str(script), *args]
             workers[name] = subprocess.Popen(cmd, env=env, text=True, stdin=-1, stdout=-1)
             start = time.perf_counter()
@@ -48,8 +52,9 @@ def run_rounds(
                 raise RuntimeError(f"{name}: the worker did not start ({cmd})")
             print(f"{name}: set up and warmed up in {time.perf_counter() - start:.0f} s")
         rates: dict[str, list[float]] = {name: [] for name in workers}
-        for _ in range(rounds):
-            for name, worker in workers.items():
+        for r in range(rounds):  # every other round backwards: no process is always first
+            for name in list(workers) if r % 2 == 0 else reversed(list(workers)):
+                worker = workers[name]
                 worker.stdin.write("go\n")
                 worker.stdin.flush()
                 rates[name].append(float(worker.stdout.readline()))
