@@ -94,9 +94,27 @@ def test_time_to_gentle_is_the_first_evaluation_that_succeeds_softly(tmp_path):
     assert frames == 2000.0 and np.isnan(seconds)
     assert time_to_gentle(load_run(run0), impact_n=5.0) == (2000.0, 30.0)
     assert all(np.isnan(time_to_gentle(load_run(run0), success=1.1)))
+    # Held: at 5 N, 2000 and 3000 are gentle -> 2000; at 3 N only the last -> 3000.
+    assert time_to_gentle(load_run(run0), impact_n=5.0, held=True) == (2000.0, 30.0)
+    assert time_to_gentle(load_run(run0), held=True) == (3000.0, 50.0)
     (row,) = summary_table(find_runs([tmp_path]))
     assert row["seeds_gentle"] == 2 and row["gentle_frames"] == pytest.approx(2500)
     assert row["gentle_wall_s"] == pytest.approx(50.0)  # the one seed with a wall clock
+    assert row["seeds_held_gentle"] == 2 and row["held_gentle_frames"] == pytest.approx(2500)
+
+
+def test_time_to_gentle_held_skips_a_lucky_first_evaluation(tmp_path):
+    run = _fake_run(tmp_path, "r+rf+rsp", 0, 2.0, (0.0, 1.0, 1.0), [1.0])
+    # gentle at 1000 (the untrained actor), not at 2000, gentle again at 3000 and 4000.
+    run.joinpath("eval_episodes.csv").write_text(
+        EPISODES_HEADER + "1000,0,1,0,2,1\n2000,0,0,0,0,0\n3000,0,1,0,2.5,1\n4000,0,1,0,1,1\n"
+    )
+    assert time_to_gentle(load_run(run))[0] == 1000.0
+    assert time_to_gentle(load_run(run), held=True)[0] == 3000.0
+    run.joinpath("eval_episodes.csv").write_text(
+        EPISODES_HEADER + "1000,0,1,0,2,1\n2000,0,0,0,0,0\n"
+    )
+    assert np.isnan(time_to_gentle(load_run(run), held=True)[0])
 
 
 def test_fade_ratio_compares_the_last_window_with_the_first_after_the_switch(tmp_path):

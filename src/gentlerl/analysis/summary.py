@@ -13,7 +13,8 @@ numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
   impact > 0), in N.
 - ``mean_eval_success``, ``seeds_reaching_0.8``, ``first_0.8_frames``: the in-loop evaluations.
 - ``seeds_gentle``, ``gentle_frames``, ``gentle_wall_s``: the time to a gentle policy
-  (:func:`time_to_gentle`), the mean over the seeds that reached one.
+  (:func:`time_to_gentle`), the mean over the seeds that reached one; ``*held_gentle*``: the same
+  for the first evaluation from which the run stayed gentle.
 - ``rsp_fade``: whether the penalty surprise fades (:func:`fade_ratio`), the median over seeds.
 """
 
@@ -53,27 +54,42 @@ GENTLE_IMPACT_N = 3.0
 
 
 def time_to_gentle(
-    run: Run, success: float = GENTLE_SUCCESS, impact_n: float = GENTLE_IMPACT_N
+    run: Run,
+    success: float = GENTLE_SUCCESS,
+    impact_n: float = GENTLE_IMPACT_N,
+    *,
+    held: bool = False,
 ) -> tuple[float, float]:
     """``(frames, wall seconds)`` at the run's first in-loop evaluation whose episodes succeed
     at a mean rate >= ``success`` with a median per-episode max impact <= ``impact_n`` newtons
-    (the env's ``env.force_scale`` undone); ``(nan, nan)`` if none did.
+    (the env's ``env.force_scale`` undone); ``(nan, nan)`` if none did. With ``held``, the first
+    evaluation from which every later one is gentle too (an untrained actor that touches softly
+    by chance at the first evaluation is gentle *first*, not *held*).
 
     The seconds are the run's training wall clock at that frame (``train/wall_s``: set-up
     excluded, the time before a resume included); nan for a run logged before it existed. A
     task without a success outcome (an external env) never reaches a gentle policy.
 
-    Example: evaluations at 5k (success 1.0, median 4.1 N) and 10k (0.8, 2.5 N) -> 10k frames.
+    Example: evaluations at 5k (success 1.0, median 2.1 N), 10k (0.0) and 15k (0.8, 2.5 N) ->
+    5k frames first, 15k held.
     """
     rows = in_loop_episodes(run)
     newtons = float(run.setting("env", "force_scale", 1.0) or 1.0)
-    for frame in np.unique(rows["frames"]) if len(rows) else ():
-        at = rows[rows["frames"] == frame]
-        if at["success"].mean() >= success and np.median(at["max_impact"]) / newtons <= impact_n:
-            wall = run.scalars.get("train/wall_s")
-            seconds = float(np.interp(frame, *wall)) if wall is not None and len(wall[0]) else NAN
-            return float(frame), seconds
-    return NAN, NAN
+    frames = np.unique(rows["frames"]) if len(rows) else np.zeros(0)
+    gentle = [
+        rows["success"][rows["frames"] == f].mean() >= success
+        and np.median(rows["max_impact"][rows["frames"] == f]) / newtons <= impact_n
+        for f in frames
+    ]
+    if held:  # the first of the final unbroken run of gentle evaluations
+        last_fail = max((i for i, ok in enumerate(gentle) if not ok), default=-1)
+        gentle = [i > last_fail for i in range(len(gentle))]
+    if not any(gentle):
+        return NAN, NAN
+    frame = float(frames[gentle.index(True)])
+    wall = run.scalars.get("train/wall_s")
+    seconds = float(np.interp(frame, *wall)) if wall is not None and len(wall[0]) else NAN
+    return frame, seconds
 
 
 #: The logged mean r^sp per contact step (recomputed at sampling), which :func:`fade_ratio` reads.
@@ -170,8 +186,9 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
         evals = [r.scalars[EVAL_SUCCESS][1] for r in group if EVAL_SUCCESS in r.scalars]
         first = np.array([_first_success(r) for r in group])
         reached = first[~np.isnan(first)]
-        gentle = np.array([time_to_gentle(r) for r in group]).reshape(-1, 2)
-        gentle = gentle[~np.isnan(gentle[:, 0])]
+        gentle, held = (
+            _reached([time_to_gentle(r, held=h) for r in group]) for h in (False, True)
+        )  # fmt: skip
         rows.append(
             {
                 "task": task,
@@ -184,11 +201,20 @@ def summary_table(runs: Sequence[Run]) -> list[dict[str, object]]:
                 "seeds_gentle": len(gentle),
                 "gentle_frames": float(gentle[:, 0].mean()) if len(gentle) else NAN,
                 "gentle_wall_s": _mean(_finite(gentle[:, 1])),
+                "seeds_held_gentle": len(held),
+                "held_gentle_frames": float(held[:, 0].mean()) if len(held) else NAN,
+                "held_gentle_wall_s": _mean(_finite(held[:, 1])),
                 "rsp_fade": _median(_finite(np.array([fade_ratio(r) for r in group]))),
                 **after_switch_columns(group),
             }
         )
     return rows
+
+
+def _reached(times: list[tuple[float, float]]) -> np.ndarray:
+    """``[n, 2]`` (frames, seconds) of the seeds whose :func:`time_to_gentle` is not nan."""
+    times_ = np.array(times, dtype=float).reshape(-1, 2)
+    return times_[~np.isnan(times_[:, 0])]
 
 
 def _cell(value: object) -> str:
