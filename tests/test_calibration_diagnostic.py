@@ -240,7 +240,12 @@ def test_penalty_surprise_sources_need_a_penalty_surprise_and_contact():
     assert stats["r_sp"] is None and stats["penalty_std"] is None
     assert math.isfinite(stats["z2_all_steps"])  # every step still has a z-score
     json.dumps(stats, allow_nan=False)
-    assert "no contact" in _sources_line("noisy", stats, True)
+    assert "no contact" in _sources_line("noisy", stats, {"intrinsic_on": True})
+    # With contact, the line names what the curiosity read.
+    touching = penalty_surprise_sources(stack.transform, [steps])
+    for kind, reads in (("nll", "a's*nll"), ("information_gain", "a's*I")):
+        line = _sources_line("noisy", touching, {"intrinsic_on": True, "surprise_kind": kind})
+        assert f"curiosity {reads} " in line
 
 
 def test_calibration_command_reproduces_the_runs_logged_scalars(hand_run):

@@ -105,7 +105,7 @@ def critic_calibration(
     """Calibration of every critic head of the run at ``path``, per rollout mode (:data:`MODES`):
     ``{"checkpoint", "task", "variant", "frames", "gamma", "sigma", "intrinsic_on", "episodes",
     "seed", "supports": {head: [v_min, v_max]}, "not_saved": [config fields], "modes": {mode:
-    {head: {"all" | "start": stats}}}}`` (see
+    {head: {"all" | "start": stats}}}, "surprise_kind"}`` (see
     :func:`~gentlerl.training.critic_calibration.measure_calibration`), and for a variant with
     penalty surprise ``"penalty_surprise_sources": {mode: stats}``
     (:func:`~gentlerl.training.critic_calibration.penalty_surprise_sources`).
@@ -144,6 +144,7 @@ def critic_calibration(
         "gamma": cfg.learner.gamma,
         "sigma": cfg.collector.sigma,
         "intrinsic_on": rewards.intrinsic_on,
+        "surprise_kind": cfg.gentleness.surprise_kind,
         "episodes": episodes,
         "seed": seed,
         "supports": {h: [lo, hi] for h, (lo, hi) in zip(heads, bounds, strict=True)},
@@ -187,7 +188,7 @@ def format_table(report: dict[str, Any]) -> str:
                     f"{s['outside_support']:>7.2f} {s['bootstrap']:>8.3f}"
                 )
     for mode, x in report.get("penalty_surprise_sources", {}).items():
-        lines.append(_sources_line(mode, x, report["intrinsic_on"]))
+        lines.append(_sources_line(mode, x, report))
     if report["not_saved"]:
         lines.insert(
             1,
@@ -198,16 +199,18 @@ def format_table(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _sources_line(mode: str, x: dict[str, Any], intrinsic_on: bool) -> str:
-    """One line of :func:`format_table`: where the penalty surprise of contact steps comes from."""
+def _sources_line(mode: str, x: dict[str, Any], report: dict[str, Any]) -> str:
+    """One line of :func:`format_table`: where the penalty surprise of contact steps comes from
+    (the curiosity reads the NLL, or the ensemble's information gain I)."""
+    reads = "I" if report.get("surprise_kind") == "information_gain" else "nll"
     head = f"penalty surprise, {mode}: {x['contact_steps']} contact steps of {x['steps']}"
     if not x["contact_steps"]:
         return f"{head}; no contact, nothing to decompose"
     sd = "n/a" if x["penalty_std"] is None else f"{x['penalty_std']:.3f}"
     return (
-        f"{head}; r^sp {x['r_sp']:.3f} per contact step = curiosity a's*nll "
+        f"{head}; r^sp {x['r_sp']:.3f} per contact step = curiosity a's*{reads} "
         f"{x['curiosity']:.3f} + refund -a'r^f {x['refund']:.3f}"
-        f"{'' if intrinsic_on else ' (intrinsic rewards off: 0)'}; nll {x['nll']:.3f} = spread "
+        f"{'' if report['intrinsic_on'] else ' (intrinsic rewards off: 0)'}; nll {x['nll']:.3f} = spread "
         f"{x['spread']:.3f} + error {x['error']:.3f} (mean z^2 {x['z2']:.2f}; over all steps "
         f"{x['z2_all_steps']:.2f}); model variance aleatoric {x['aleatoric']:.3f}, epistemic "
         f"{x['epistemic']:.3f}; r^f {x['penalty']:.3f} (sd {sd})"
