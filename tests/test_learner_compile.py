@@ -6,7 +6,7 @@ import torch._inductor.config
 from tensordict import TensorDict
 from torch._dynamo.utils import counters
 
-from gentlerl.agent.learner import Learner
+from gentlerl.agent.learner import EagerOnBuildFailure, Learner
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
 
@@ -55,6 +55,7 @@ def test_compiled_update_gives_the_eager_losses_priorities_and_parameters():
     torch.testing.assert_close(
         compiled.loss.state_dict(), eager.loss.state_dict(), rtol=RTOL, atol=ATOL
     )
+    assert compiled._losses.compiled is not None  # it ran compiled, not via the fallback
     # One graph: no host sync or data-dependent shape in the losses, projection or priorities.
     assert not counters["graph_break"], dict(counters["graph_break"])
     assert counters["stats"]["unique_graphs"] == 1
@@ -83,3 +84,24 @@ def test_compile_falls_back_to_eager_with_the_reason(monkeypatch):
         learner = _learner(compile=True)
     learner.update(_batch(0))
     assert learner._losses == learner._losses_and_priorities  # the eager bound method
+
+
+def test_a_compiled_step_that_fails_to_build_runs_eagerly_and_says_why():
+    calls = []
+
+    def eager(x):
+        calls.append(x)
+        return x + 1
+
+    def failing(x):
+        inner = RuntimeError("'at::vec' has not been declared\n(the C++ that followed)")
+        raise torch._dynamo.exc.BackendCompilerFailed(failing, inner, None)
+
+    step = EagerOnBuildFailure(eager, failing)
+    with pytest.warns(UserWarning, match="RuntimeError: 'at::vec' has not been declared\\); the"):
+        assert step(1) == 2
+    assert step(5) == 6 and calls == [1, 5] and step.compiled is None
+    # Any other error is the step's own and is raised, not hidden by the fallback.
+    step = EagerOnBuildFailure(eager, lambda x: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        step(1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -39,19 +39,52 @@ def compile_step(
     """``step`` through ``torch.compile`` and / or a CUDA graph, as TorchRL's sota-implementations.
 
     Without a working ``torch.compile`` (no C++ compiler for inductor on CPU, an unsupported
-    Python) ``compile`` falls back to the eager step with a warning that says why.
+    Python) ``compile`` falls back to the eager step with a warning that says why; so does a
+    compiled step whose build fails when it is first called (:class:`EagerOnBuildFailure`).
     ``cudagraphs`` wraps the step in ``tensordict.nn.CudaGraphModule`` (its first ``warmup`` calls
     run eagerly, then one graph is replayed; inputs are copied in, outputs cloned out).
     """
     if compile:
         reason = compile_unavailable()
         if reason is None:
-            step = torch.compile(step)
+            # tensordict reads a dynamo setting that torch 2.13 deprecates, once per trace.
+            warnings.filterwarnings(
+                "ignore", "torch._dynamo.config.inline_inbuilt_nn_modules", FutureWarning
+            )
+            step = cast(Step, EagerOnBuildFailure(step, torch.compile(step)))
         else:
             warnings.warn(f"learner.compile: {reason}; the learner runs eagerly", stacklevel=2)
     if cudagraphs:
         step = CudaGraphModule(step, in_keys=[], out_keys=[], warmup=warmup)
     return step
+
+
+class EagerOnBuildFailure:
+    """``compiled`` until inductor fails to build it (``BackendCompilerFailed``, raised before
+    the step runs, so nothing was half-done), then ``eager`` with a warning naming the failure.
+
+    Example: a stale inductor cache built for another CPU capability fails to compile its C++
+    ("'at::vec' has not been declared"); the run goes on eagerly instead of stopping.
+    """
+
+    def __init__(self, eager: Callable[..., Any], compiled: Callable[..., Any]) -> None:
+        self.eager, self.compiled = eager, compiled
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if self.compiled is None:
+            return self.eager(*args, **kwargs)
+        try:
+            return self.compiled(*args, **kwargs)
+        except torch._dynamo.exc.BackendCompilerFailed as err:
+            inner = getattr(err, "inner_exception", err)
+            first = f"{type(inner).__name__}: {(str(inner).strip() or '-').splitlines()[0]}"
+            warnings.warn(
+                f"learner.compile: inductor failed to build the update ({first[:200]}); the "
+                "learner runs eagerly from here",
+                stacklevel=2,
+            )
+            self.compiled = None
+            return self.eager(*args, **kwargs)
 
 
 def compile_unavailable() -> str | None:
