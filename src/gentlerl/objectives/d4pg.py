@@ -15,7 +15,7 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 from tensordict.utils import NestedKey, unravel_key
 from torchrl.objectives.common import LossModule
-from torchrl.objectives.utils import ValueEstimators, _cache_values
+from torchrl.objectives.utils import ValueEstimators
 
 from gentlerl import keys
 from gentlerl.objectives.value import CategoricalTD0
@@ -200,19 +200,36 @@ class MultiHeadD4PGLoss(LossModule):
         with params.to_module(self.actor_network, preserve_module_state=False):
             return self.actor_network(td)
 
+    def network_params(self) -> TensorDict:
+        """The four parameter sets the losses read (online and target actor and critic), as one
+        tensordict: :meth:`losses` with a stack of them runs several agents at once (``vmap``)."""
+        return TensorDict(
+            {
+                "actor": self.actor_network_params,
+                "value": self.value_network_params,
+                "target_actor": self.target_actor_network_params,
+                "target_value": self.target_value_network_params,
+            },
+            batch_size=[],
+        )
+
     @torch.no_grad()
-    def target_distribution(self, tensordict: TensorDictBase) -> torch.Tensor:
-        """Projected targets ``[B, K, num_atoms]`` from the target actor and target critics."""
+    def target_distribution(
+        self, tensordict: TensorDictBase, params: TensorDictBase | None = None
+    ) -> torch.Tensor:
+        """Projected targets ``[B, K, num_atoms]`` from the target actor and target critics
+        (``params``: :meth:`network_params`, the loss's own by default)."""
+        params = self.network_params() if params is None else params
         next_td = tensordict.get("next").select(
             *self.actor_in_keys, *self.value_in_keys, strict=False
         )
-        next_td = self._act(next_td, self.target_actor_network_params)
+        next_td = self._act(next_td, params["target_actor"])
         if self.policy_noise > 0:
             action = next_td.get(self.action_key)
             noise = torch.randn_like(action) * self.policy_noise
             noise = noise.clamp(-self.noise_clip, self.noise_clip)
             next_td.set(self.action_key, (action + noise).clamp(-1.0, 1.0))
-        next_logits, next_atoms = self._critic(next_td, self.target_value_network_params)
+        next_logits, next_atoms = self._critic(next_td, params["target_value"])
         batch = tensordict.batch_size
         reward = torch.cat(
             [tensordict.get(("next", k)).reshape(*batch, 1) for k in self.reward_keys], -1
@@ -223,49 +240,68 @@ class MultiHeadD4PGLoss(LossModule):
         cut = terminated.bool() & self.episodic  # [B, K]: non-episodic heads bootstrap anyway
         return self.value_estimator.target(next_logits, next_atoms, reward, steps, cut)
 
-    def loss_value(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
-        """Summed cross-entropy of the K critics; writes ``td_error`` into ``tensordict``.
-
-        Returns ``(loss, {"per_head": [K] losses})``.
-        """
+    def _value_terms(
+        self, tensordict: TensorDictBase, params: TensorDictBase
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``([K] per-head critic losses, [B] priorities)``; the batch is left alone."""
         weights = self._maybe_get_priority_weight(tensordict)
-        target = self.target_distribution(tensordict)
+        target = self.target_distribution(tensordict, params)
         td = tensordict.select(*self.value_in_keys, strict=False).detach()
-        logits, _ = self._critic(td, self.value_network_params)
+        logits, _ = self._critic(td, params["value"])
         cross_entropy = -(target * logits.log_softmax(-1)).sum(-1)  # [B, K]
         per_head = [
             self._reduce_loss(cross_entropy[..., k], tensordict=tensordict, weights=weights)
             for k in range(self.num_heads)
         ]
-        tensordict.set(self.tensor_keys.priority, cross_entropy.detach().mean(-1), inplace=True)
-        return torch.stack(per_head).sum(), {"per_head": torch.stack(per_head)}
+        return torch.stack(per_head), cross_entropy.detach().mean(-1)
+
+    def loss_value(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
+        """Summed cross-entropy of the K critics; writes ``td_error`` into ``tensordict``.
+
+        Returns ``(loss, {"per_head": [K] losses})``.
+        """
+        per_head, priority = self._value_terms(tensordict, self.network_params())
+        tensordict.set(self.tensor_keys.priority, priority, inplace=True)
+        return per_head.sum(), {"per_head": per_head}
+
+    def _actor_terms(
+        self, tensordict: TensorDictBase, params: TensorDictBase
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(actor loss, [K] mean expected returns)``; the critics get no gradient from it."""
+        weights = self._maybe_get_priority_weight(tensordict)
+        actor_td = self._act(
+            tensordict.select(*self.actor_in_keys, strict=False).detach(), params["actor"]
+        )
+        logits, atoms = self._critic(actor_td, params["value"].detach())
+        q_per_head = (logits.softmax(-1) * atoms).sum(-1)  # [B, K]
+        loss = self._reduce_loss(-q_per_head.sum(-1), tensordict=tensordict, weights=weights)
+        return loss, q_per_head.detach().reshape(-1, self.num_heads).mean(0)
 
     def loss_actor(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
         """Minus the summed expected return of the K heads at ``(s, pi(s))``.
 
         Returns ``(loss, {"value": [K] mean expected returns})``.
         """
-        weights = self._maybe_get_priority_weight(tensordict)
-        actor_td = self._act(
-            tensordict.select(*self.actor_in_keys, strict=False).detach(), self.actor_network_params
-        )
-        logits, atoms = self._critic(actor_td, self._cached_detached_value_params)
-        q_per_head = (logits.softmax(-1) * atoms).sum(-1)  # [B, K]
-        loss = self._reduce_loss(-q_per_head.sum(-1), tensordict=tensordict, weights=weights)
-        return loss, {"value": q_per_head.detach().reshape(-1, self.num_heads).mean(0)}
+        loss, value = self._actor_terms(tensordict, self.network_params())
+        return loss, {"value": value}
+
+    def losses(
+        self, tensordict: TensorDictBase, params: TensorDictBase
+    ) -> tuple[TensorDict, torch.Tensor]:
+        """Critic and actor losses of the agent whose parameters are ``params``
+        (:meth:`network_params`) and the per-sample priorities; a pure function of its inputs
+        (the batch is not written), so ``torch.vmap`` can run a stack of agents at once."""
+        per_head, priority = self._value_terms(tensordict, params)
+        loss_actor, value = self._actor_terms(tensordict, params)
+        out = {"loss_actor": loss_actor, "loss_value": per_head.sum()}
+        for k, key in enumerate(self.reward_keys):
+            name = key if isinstance(key, str) else "_".join(key)
+            out[f"loss_value_{name}"] = per_head[k]
+            out[f"value_{name}"] = value[k]
+        return TensorDict(out, batch_size=[]), priority
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         """Critic and actor losses on a (n-step) batch; writes ``td_error`` into ``tensordict``."""
-        loss_value, value_info = self.loss_value(tensordict)
-        loss_actor, actor_info = self.loss_actor(tensordict)
-        out = {"loss_actor": loss_actor, "loss_value": loss_value}
-        for k, key in enumerate(self.reward_keys):
-            name = key if isinstance(key, str) else "_".join(key)
-            out[f"loss_value_{name}"] = value_info["per_head"][k]
-            out[f"value_{name}"] = actor_info["value"][k]
-        return TensorDict(out, batch_size=[])
-
-    @property
-    @_cache_values
-    def _cached_detached_value_params(self) -> TensorDictBase:
-        return self.value_network_params.detach()
+        out, priority = self.losses(tensordict, self.network_params())
+        tensordict.set(self.tensor_keys.priority, priority, inplace=True)
+        return out

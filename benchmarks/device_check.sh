@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# The GPU machine's check, in one command of at most 8 minutes: the machine (GPU, driver, torch,
+# CUDA), the learner (eager vs CUDA graph vs compiled, 1 vs 5 seeds, paper scale), collection
+# (1, 4 and 16 worker processes) and a short end-to-end training run with the learner on the GPU;
+# a dated markdown table goes to OUT_DIR/device_table.md (append it to benchmarks/RESULTS.md).
+#
+#   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner collect e2e
+#
+# Packages: the machine's own python3 (torch with CUDA); what it lacks (torchrl, tensordict,
+# dm_control, mujoco, the Shadow Hand model, hydra) comes from .devsite/site.tgz when present
+# (CONTRIBUTING.md, "A lent GPU machine", says how to build it), else from the environment.
+# Each section has its own time limit, so a slow one cannot cost the others their numbers.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT_DIR="${1:-${OUT:-/tmp/device_check}}"
+shift || true
+SECTIONS="${*:-env learner collect e2e}"
+mkdir -p "$OUT_DIR"
+PY="${PYTHON:-python3}"
+export PYTHONPATH="$PWD/src:$PWD/benchmarks"
+if ! "$PY" -c "import torchrl, dm_control" 2>/dev/null && [ -f .devsite/site.tgz ]; then
+  mkdir -p /tmp/gentlerl_site && tar xzf .devsite/site.tgz -C /tmp/gentlerl_site
+  export PYTHONPATH="/tmp/gentlerl_site:$PYTHONPATH"
+fi
+export MUJOCO_GL="${MUJOCO_GL:-disable}" RL_WARNINGS=False PYTHONUNBUFFERED=1
+TABLE="$OUT_DIR/device_table.md"
+LOG="$OUT_DIR/device_log.txt"
+
+# run LIMIT_S NAME CMD...: the command's output to the log; its table lines to the table
+run() {
+  local limit=$1 name=$2
+  shift 2
+  echo "--- $name ($(date -u +%H:%M:%S), limit ${limit} s): $*" | tee -a "$LOG"
+  local start=$SECONDS
+  timeout "$limit" "$@" >>"$LOG" 2>&1
+  local rc=$?
+  echo "--- $name: rc $rc in $((SECONDS - start)) s" | tee -a "$LOG"
+  { echo; echo "### $name (rc $rc, $((SECONDS - start)) s)"; echo
+    sed -n "/^=== $name/,\$p" "$LOG" | grep -E '^\|' || true; } >>"$TABLE"
+}
+
+echo "## device_check, $(date -u '+%Y-%m-%d %H:%M UTC')" >"$TABLE"
+if [[ " $SECTIONS " == *" env "* ]]; then
+  {
+    echo
+    echo '```'
+    nvidia-smi -L 2>&1
+    nvidia-smi --query-gpu=driver_version,clocks.sm,clocks.mem,memory.used,utilization.gpu --format=csv 2>&1
+    "$PY" -c "import sys, torch; print('python', sys.version.split()[0], '| torch', torch.__version__, '| CUDA', torch.version.cuda, '| GPU', torch.cuda.get_device_name() if torch.cuda.is_available() else 'none')" 2>&1
+    "$PY" -c "import tensordict, torchrl, mujoco, dm_control, gentlerl; print('tensordict', tensordict.__version__, '| torchrl', torchrl.__version__, '| mujoco', mujoco.__version__)" 2>&1 | tail -1
+    echo "CPUs $(nproc), $(uptime)"
+    echo '```'
+  } >>"$TABLE"
+fi
+if [[ " $SECTIONS " == *" learner "* ]]; then
+  echo "=== learner" >>"$LOG"
+  run 300 learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
+    --modes eager cudagraphs compile+cudagraphs --min-time 2 --json "$OUT_DIR/learner.json"
+fi
+if [[ " $SECTIONS " == *" collect "* ]]; then
+  echo "=== collect" >>"$LOG"
+  run 110 collect "$PY" benchmarks/collect_scale.py --workers 1 4 16 --hands 4 --batches 8 \
+    --json "$OUT_DIR/collect.json"
+fi
+if [[ " $SECTIONS " == *" e2e "* ]]; then
+  echo "=== e2e" >>"$LOG"
+  run 150 e2e "$PY" benchmarks/e2e_speed.py --device cuda --frames 30000 --json "$OUT_DIR/e2e.json"
+fi
+cat "$TABLE"
