@@ -54,16 +54,17 @@ if [[ " $SECTIONS " == *" env "* ]]; then
 fi
 if [[ " $SECTIONS " == *" learner "* ]]; then
   echo "=== learner" >>"$LOG"
-  run 300 learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
-    --modes eager cudagraphs compile+cudagraphs --min-time 2 --json "$OUT_DIR/learner.json"
+  run 240 learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
+    --modes eager cudagraphs compile+cudagraphs compile --min-time 1.5 --json "$OUT_DIR/learner.json"
 fi
 if [[ " $SECTIONS " == *" collect "* ]]; then
   echo "=== collect" >>"$LOG"
-  run 110 collect "$PY" benchmarks/collect_scale.py --workers 1 4 16 --hands 4 --batches 8 \
+  run 100 collect "$PY" benchmarks/collect_scale.py --workers 1 4 16 --hands 4 --batches 8 \
     --json "$OUT_DIR/collect.json"
 fi
 if [[ " $SECTIONS " == *" e2e "* ]]; then
   echo "=== e2e" >>"$LOG"
-  run 150 e2e "$PY" benchmarks/e2e_speed.py --device cuda --frames 30000 --json "$OUT_DIR/e2e.json"
+  run 200 e2e "$PY" benchmarks/e2e_speed.py --device cuda --graphs --workers 12 --threads 2 \
+    --frames 30000 --json "$OUT_DIR/e2e.json"
 fi
 cat "$TABLE"

@@ -24,6 +24,7 @@ import time
 
 import torch
 from learner_speed import ACT, OBS, Scale, _batch, _time, make_scale
+from tensordict import TensorDict
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner, compile_step
@@ -83,7 +84,7 @@ def make_model_update(scale: Scale, mode: str, device: str):
         nll = loss(td)["loss_penalty"]
         nll.backward()
         opt.step()
-        return nll.detach()
+        return TensorDict({"loss_penalty": nll.detach()})  # CudaGraphModule returns tensordicts
 
     step = compile_step(step, compile="compile" in mode, cudagraphs="cudagraphs" in mode)
     return lambda: step(batch)

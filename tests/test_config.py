@@ -93,12 +93,22 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"collector": {"num_envs": 4, "kind": "multi"}}, "collector.num_envs=4 with collector.kind=multi"),
         ({"collector": {"env_threads": 0}}, "collector.env_threads=0 must be in [1, 256]"),
         ({"collector": {"kind": "multi", "overlap": True}}, "collector.overlap=true needs collector.kind='single'"),
+        ({"learner": {"device": "tpu"}}, "learner.device='tpu' must be cpu, cuda or cuda:N"),
+        ({"learner": {"cudagraphs": True}}, "learner.cudagraphs=true needs learner.device=cuda, got 'cpu'"),
     ],
 )  # fmt: skip
 def test_bad_values_raise_one_clear_error(overrides, message):
     with pytest.raises(ValueError) as err:
         make_config(**overrides)
     assert message in str(err.value)
+
+
+def test_a_cuda_learner_where_torch_sees_no_gpu_is_refused_up_front(monkeypatch):
+    monkeypatch.setattr("torch.cuda.is_available", lambda: False)
+    with pytest.raises(
+        ValueError, match=r"learner.device='cuda:1': torch sees 0 CUDA device\(s\) here"
+    ):
+        make_config(learner={"device": "cuda:1"})
 
 
 def test_every_problem_is_listed_at_once():

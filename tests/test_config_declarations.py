@@ -29,9 +29,13 @@ OLD_SAFE_TO_CHANGE = (
 ).split()
 
 
+#: Fields declared resumable since: a checkpoint's tensors load onto any learner device.
+NEW_SAFE_TO_CHANGE = ("learner.device",)
+
+
 def test_safe_to_change_is_the_fields_declared_resumable():
     assert len(OLD_SAFE_TO_CHANGE) == 34
-    assert frozenset(OLD_SAFE_TO_CHANGE) == SAFE_TO_CHANGE
+    assert frozenset([*OLD_SAFE_TO_CHANGE, *NEW_SAFE_TO_CHANGE]) == SAFE_TO_CHANGE
 
 
 def test_the_config_package_imports_nothing_else_of_gentlerl():

@@ -58,3 +58,25 @@ def test_state_round_trip():
 def test_bad_period():
     with pytest.raises(ValueError, match="target_update_period must be >= 1, got 0"):
         _learner(period=0)
+
+
+def test_a_separate_policy_acts_with_the_weights_of_the_last_sync():
+    torch.manual_seed(0)
+    critic = make_critic(3, 1, 2, (16,), 11, v_min=-5.0, v_max=5.0)
+    loss = MultiHeadD4PGLoss(make_actor(3, 1, (16,)), critic, reward_keys=["reward", "penalty"])
+    learner = Learner(
+        loss, lr_actor=1e-2, lr_critic=1e-2, target_update_period=3, separate_policy=True
+    )
+    obs = TensorDict({"observation": torch.randn(8, 3)}, [8])
+    before = learner.policy(obs.clone())["action"]
+    learner.update(_batch())
+    torch.testing.assert_close(learner.policy(obs.clone())["action"], before)  # not yet synced
+    learner.sync_policy()
+    trained = learner.actor(obs.clone())["action"]
+    assert not torch.equal(trained, before)
+    torch.testing.assert_close(learner.policy(obs.clone())["action"], trained)
+
+
+def test_a_cpu_learner_acts_with_its_own_actor():
+    learner = _learner()
+    assert learner.policy is learner.actor

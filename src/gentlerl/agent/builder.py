@@ -140,7 +140,7 @@ class AgentBuilder:
         loss.make_value_estimator(gamma=learner.gamma)
         loss.set_keys(terminated=keys.NSTEP_TERMINATED)
         return Learner(
-            loss,
+            loss.to(learner.device),
             lr_actor=learner.lr_actor,
             lr_critic=learner.lr_critic,
             target_update_period=learner.target_update_period,
@@ -149,9 +149,10 @@ class AgentBuilder:
         )
 
     def make_policy(self, learner: Learner) -> torch.nn.Module:
-        """The learner's actor with Gaussian exploration noise (``collector.sigma``)."""
+        """The learner's acting actor (:attr:`Learner.policy`, on the CPU) with Gaussian
+        exploration noise (``collector.sigma``)."""
         return make_exploration_policy(
-            learner.actor, self.cfg.collector.sigma, action_dim=self.action_dim
+            learner.policy, self.cfg.collector.sigma, action_dim=self.action_dim
         )
 
     def make_replay(

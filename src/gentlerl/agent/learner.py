@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -119,6 +120,8 @@ class Learner:
         compile: ``torch.compile`` the losses and their backward (the first update compiles them:
             seconds to minutes).
         cudagraphs: replay the whole step as a CUDA graph (its Adam capturable); CUDA only.
+        separate_policy: act with a CPU copy of the actor (:attr:`policy`); default: when the
+            learner is not on the CPU.
     """
 
     def __init__(
@@ -130,13 +133,16 @@ class Learner:
         target_update_period: int,
         compile: bool = False,
         cudagraphs: bool = False,
+        separate_policy: bool | None = None,
     ) -> None:
         if target_update_period < 1:
             raise ValueError(f"target_update_period must be >= 1, got {target_update_period}")
         device = next(loss.parameters()).device
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"learner.cudagraphs needs a CUDA learner, this one is on {device}")
-        self.loss = loss
+        self.loss, self.device = loss, device
+        separate = device.type != "cpu" if separate_policy is None else separate_policy
+        self._policy = copy.deepcopy(loss.actor_network).cpu() if separate else loss.actor_network
         # One fused kernel per parameter group instead of ~10 small ones per parameter.
         self._adam_options = {"fused": True, "foreach": None, "capturable": cudagraphs}
         self.optimizer = torch.optim.Adam(
@@ -159,7 +165,20 @@ class Learner:
 
     @property
     def actor(self) -> torch.nn.Module:
+        """The actor being trained (on the learner's device)."""
         return self.loss.actor_network
+
+    @property
+    def policy(self) -> torch.nn.Module:
+        """The actor that acts, on the CPU: :attr:`actor` itself on a CPU learner, else a copy
+        as of the last :meth:`sync_policy`."""
+        return self._policy
+
+    @torch.no_grad()
+    def sync_policy(self) -> None:
+        """Copy the trained actor's parameters into :attr:`policy` (nothing on a CPU learner)."""
+        if self._policy is not self.loss.actor_network:
+            self._policy.load_state_dict(self.loss.actor_network.state_dict())
 
     def _gradient_step(self, batch: TensorDictBase) -> TensorDict:
         """Losses, backward, Adam step; returns the losses and the priorities (no host sync)."""
@@ -177,8 +196,11 @@ class Learner:
 
     def update(self, batch: TensorDictBase) -> TensorDict:
         """One gradient step on ``batch`` (its ``td_error`` is written for the priorities)."""
-        out = self._step(batch.select(*self._in_keys, strict=False))
-        batch.set(self._priority_key, out.pop(self._priority_key), inplace=True)
+        inputs = batch.select(*self._in_keys, strict=False)
+        home = batch.device or inputs.get(self._in_keys[0]).device  # where the replay is
+        out = self._step(inputs.to(self.device, non_blocking=True))
+        priority = out.pop(self._priority_key).to(home)
+        batch.set(self._priority_key, priority, inplace=True)
         self.target_updater.step()
         return out
 
@@ -196,3 +218,4 @@ class Learner:
         groups = [{**g, **self._adam_options} for g in state.optimizer["param_groups"]]
         self.optimizer.load_state_dict({**state.optimizer, "param_groups": groups})
         self.target_updater.counter = state.target_counter
+        self.sync_policy()

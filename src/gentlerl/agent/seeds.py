@@ -77,14 +77,16 @@ class SeedBatchedLearner:
         )
         self._step = compile_step(self._gradient_step, cudagraphs=cudagraphs)
 
-    def _gradient_step(self, batch: TensorDictBase) -> tuple[TensorDict, torch.Tensor]:
-        """Every seed's losses, one backward of their sum, one Adam step; ``([S] losses, [S, B]
-        priorities)`` with no host sync."""
+    def _gradient_step(self, batch: TensorDictBase) -> TensorDict:
+        """Every seed's losses, one backward of their sum, one Adam step; returns the ``[S]``
+        losses with the ``[S, B]`` priorities, with no host sync."""
         self.optimizer.zero_grad(set_to_none=True)
         out, priority = self._losses(batch, self.params)
         (out["loss_value"] + out["loss_actor"]).sum().backward()
         self.optimizer.step()
-        return out.detach(), priority
+        out = out.detach()
+        out.set(self._priority_key, priority)
+        return out
 
     def update(self, batch: TensorDictBase) -> TensorDict:
         """One gradient step of every seed on ``batch`` ``[S, B]``; writes its priorities."""
@@ -93,8 +95,8 @@ class SeedBatchedLearner:
                 f"a seed-batched update needs a batch shaped [num_seeds={self.num_seeds}, B], "
                 f"got {tuple(batch.batch_size)}"
             )
-        out, priority = self._step(batch.select(*self._in_keys, strict=False))
-        batch.set(self._priority_key, priority, inplace=True)
+        out = self._step(batch.select(*self._in_keys, strict=False))
+        batch.set(self._priority_key, out.pop(self._priority_key), inplace=True)
         self.counter += 1
         if self.counter % self.target_update_period == 0:
             self._copy_targets()

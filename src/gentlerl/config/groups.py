@@ -181,7 +181,13 @@ class LearnerConfig:
         False, "torch.compile the learner's update (the first updates compile it)"
     )
     cudagraphs: bool = setting(
-        False, "replay the learner's update as a CUDA graph (CUDA learners only)"
+        False, "replay the learner's update as a CUDA graph (needs learner.device=cuda)"
+    )
+    device: str = setting(
+        "cpu",
+        "where the D4PG networks and their updates run: cpu, cuda or cuda:N (collection, the "
+        "reward models and the replay stay on the CPU; the acting actor is a CPU copy)",
+        resumable=True,
     )
 
 

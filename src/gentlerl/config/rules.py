@@ -3,6 +3,7 @@ problem, naming the fields."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -10,6 +11,7 @@ from gentlerl.config.groups import (
     OVERLAPS,
     CollectorConfig,
     GentlenessConfig,
+    LearnerConfig,
     NetworkConfig,
     ReplayConfig,
 )
@@ -82,10 +84,29 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
     ]
 
 
+def learner_problems(learner: LearnerConfig) -> list[str]:
+    """``device`` names a device torch has here (cpu, cuda, cuda:N), and ``cudagraphs`` a CUDA
+    one."""
+    device = learner.device
+    if not re.fullmatch(r"cpu|cuda(:\d+)?", device):
+        return [f"learner.device={device!r} must be cpu, cuda or cuda:N"]
+    if device.startswith("cuda"):
+        import torch
+
+        index = int(device.partition(":")[2] or 0)
+        if not torch.cuda.is_available() or index >= torch.cuda.device_count():
+            found = torch.cuda.device_count() if torch.cuda.is_available() else 0
+            return [f"learner.device={device!r}: torch sees {found} CUDA device(s) here"]
+    elif learner.cudagraphs:
+        return [f"learner.cudagraphs=true needs learner.device=cuda, got {device!r}"]
+    return []
+
+
 #: The rules of each group beyond its fields' declared ranges, by group name.
 GROUP_RULES: dict[str, Callable[[Any], list[str]]] = {
     "collector": collector_problems,
     "replay": replay_problems,
+    "learner": learner_problems,
     "network": network_problems,
     "gentleness": gentleness_problems,
 }

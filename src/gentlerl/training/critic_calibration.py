@@ -125,15 +125,18 @@ def critic_values(
     loss: MultiHeadD4PGLoss, td: TensorDictBase, act: bool = False
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """``([N, K] expected values, [K, num_atoms] atoms)`` of the online critic on ``td``'s
-    ``observation`` and ``action`` (with ``act``: the online actor's action, no noise)."""
-    td = td.select(*loss.actor_in_keys, *loss.value_in_keys, strict=False).clone(False)
+    ``observation`` and ``action`` (with ``act``: the online actor's action, no noise), on the
+    CPU wherever the loss is."""
+    device = next(loss.parameters()).device
+    td = td.select(*loss.actor_in_keys, *loss.value_in_keys, strict=False).to(device)
     if act:
         td = loss.actor_network(td)
     with loss.value_network_params.to_module(loss.value_network):
         out = loss.value_network(td)
     logits = out.get(loss.tensor_keys.value_logits)
     atoms = out.get(loss.tensor_keys.value_atoms)
-    return expected_value(logits, atoms), atoms.reshape(-1, *atoms.shape[-2:])[0]
+    values, atoms = expected_value(logits, atoms), atoms.reshape(-1, *atoms.shape[-2:])[0]
+    return values.cpu(), atoms.cpu()
 
 
 @torch.no_grad()

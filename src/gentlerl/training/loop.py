@@ -135,6 +135,7 @@ class Trainer:
             self._store(batch)
             if self._learning():
                 self._earn_updates(batch.numel(), pending)
+                self.learner.sync_policy()  # the acting copy of a GPU learner's actor
                 next_sync = self._sync_policy(collector, next_sync)
             self._log_training(logger, pending)
             self.wall_s = wall + time.perf_counter() - start
@@ -226,7 +227,7 @@ class Trainer:
 
     def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
         episodes = self.cfg.logging.eval_episodes
-        rollouts = rollout_episodes(eval_env, self.learner.actor, episodes, self.builder.horizon)
+        rollouts = rollout_episodes(eval_env, self.learner.policy, episodes, self.builder.horizon)
         summary, per_episode = summarize_episodes(rollouts)
         frames = self.counters["frames"]
         logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
@@ -253,7 +254,7 @@ class Trainer:
             "config": self.cfg.to_dict(),
             "obs_dim": self.builder.obs_dim,
             "action_dim": self.builder.action_dim,
-            "actor": self.learner.actor.state_dict(),
+            "actor": self.learner.policy.state_dict(),
         }
 
     def state_dict(self) -> dict[str, Any]:

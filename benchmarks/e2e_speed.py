@@ -1,0 +1,124 @@
+"""End-to-end training speed: one short run of ``gentlerl train`` at the paper's scale, timed.
+
+    python benchmarks/e2e_speed.py [--task fragile] [--frames 30000] [--random-frames 10000]
+        [--device cuda] [--graphs] [--workers 8] [--threads 4] [--json F]
+
+The run is the paper preset (``scale=paper``: batch 256, critics 400-300, one update per frame)
+with the learner on ``--device`` (``--graphs``: ``learner.compile`` + ``learner.cudagraphs``),
+collection by ``--workers`` env processes (TorchRL's ``MultiSyncCollector``; 1: the single
+collector with 4 hands), no checkpoint and one 5-episode evaluation. It reports the run's wall
+clock, frames/s over the run, the loop's own ``train/updates_per_s`` (model + learner updates,
+sampling and priorities; collection excluded) after the random frames, and the time a 500k-frame
+run would take at those rates (``init_random_frames`` at the random-phase rate, the rest at the
+learning rate): the measured floor of the paper-scale goal.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gentlerl.training import make_config, train
+
+PAPER_FRAMES = 500_000
+
+
+def _series(run_dir: Path, name: str) -> np.ndarray:
+    """``[frames, value]`` rows of a logged scalar."""
+    path = run_dir / "logs" / "scalars" / f"{name}.csv"
+    rows = [line.split(",")[:2] for line in path.read_text().splitlines() if line[:1].isdigit()]
+    return np.array(rows, dtype=float).reshape(-1, 2)
+
+
+def run(args: argparse.Namespace, run_dir: Path) -> dict:
+    collector = {"total_frames": args.frames, "init_random_frames": args.random_frames}
+    if args.workers > 1:
+        collector |= {"kind": "multi", "num_workers": args.workers, "num_envs": 1}
+        collector["frames_per_batch"] = 50 * args.workers
+    learner = {"device": args.device, "compile": args.graphs, "cudagraphs": args.graphs}
+    cfg = make_config(
+        "paper",
+        task=args.task,
+        seed=args.seed,
+        run_dir=str(run_dir),
+        num_threads=args.threads,
+        collector=collector,
+        learner=learner,
+        logging={
+            "eval_every_frames": 10**9,
+            "checkpoint_every_frames": 10**9,
+            "eval_episodes": 5,
+            "progress": False,
+            "log_every_updates": 100,
+        },
+    )
+    start = time.perf_counter()
+    summary = train(cfg)
+    wall = time.perf_counter() - start
+    ups = _series(run_dir, "train/updates_per_s")
+    steps = _series(run_dir, "train/wall_s")
+    random = steps[steps[:, 0] <= args.random_frames]
+    learning = steps[steps[:, 0] > args.random_frames]
+    random_fps = random[-1, 0] / random[-1, 1] if len(random) else float("nan")
+    learn_fps = (
+        (learning[-1, 0] - random[-1, 0]) / (learning[-1, 1] - random[-1, 1])
+        if len(learning) and len(random)
+        else float("nan")
+    )
+    projected = args.random_frames / random_fps + (PAPER_FRAMES - args.random_frames) / learn_fps
+    return {
+        "task": args.task,
+        "device": args.device,
+        "graphs": args.graphs,
+        "workers": args.workers,
+        "frames": args.frames,
+        "wall_s": wall,
+        "random_phase_frames_per_s": random_fps,
+        "learning_frames_per_s": learn_fps,
+        "loop_updates_per_s_median": float(np.median(ups[:, 1])) if len(ups) else float("nan"),
+        "projected_500k_min": projected / 60,
+        "final_success": summary.get("success"),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="fragile")
+    parser.add_argument("--frames", type=int, default=30_000)
+    parser.add_argument("--random-frames", type=int, default=10_000)
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--graphs", action="store_true", help="learner.compile + cudagraphs")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--threads", type=int, default=1, help="torch threads of the learner")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json")
+    args = parser.parse_args()
+    if not 0 < args.random_frames < args.frames:
+        parser.error(
+            f"need 0 < --random-frames < --frames, got {args.random_frames}, {args.frames}"
+        )
+    with tempfile.TemporaryDirectory() as tmp:
+        row = run(args, Path(tmp) / "run")
+    print(json.dumps(row), flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(row, indent=1))
+    print(f"\nload {os.getloadavg()[0]:.1f}")
+    print("| task | learner | workers | frames | wall s | frames/s random / learning "
+          "| loop updates/s | 500k frames at these rates |")  # fmt: skip
+    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    learner = f"{row['device']}{' + compile + graphs' if row['graphs'] else ''}"
+    print(
+        f"| {row['task']} | {learner} | {row['workers']} | {row['frames']:,} | {row['wall_s']:.0f} "
+        f"| {row['random_phase_frames_per_s']:,.0f} / {row['learning_frames_per_s']:,.0f} "
+        f"| {row['loop_updates_per_s_median']:,.0f} | {row['projected_500k_min']:.1f} min |"
+    )
+
+
+if __name__ == "__main__":
+    main()
