@@ -5,6 +5,7 @@
 # a dated markdown table goes to OUT_DIR/device_table.md (append it to benchmarks/RESULTS.md).
 #
 #   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner collect e2e
+#   LEARNER_MODES="cudagraphs" LEARNER_LIMIT=120 E2E_FRAMES=25000 E2E_LIMIT=150 bash ... (a shorter check)
 #
 # Packages: the machine's own python3 (torch with CUDA); what it lacks (torchrl, tensordict,
 # dm_control, mujoco, the Shadow Hand model, hydra) comes from .devsite/site.tgz when present
@@ -54,8 +55,8 @@ if [[ " $SECTIONS " == *" env "* ]]; then
 fi
 if [[ " $SECTIONS " == *" learner "* ]]; then
   echo "=== learner" >>"$LOG"
-  run 240 learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
-    --modes eager cudagraphs compile+cudagraphs compile --min-time 1.5 --json "$OUT_DIR/learner.json"
+  run "${LEARNER_LIMIT:-240}" learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
+    --modes ${LEARNER_MODES:-eager cudagraphs compile+cudagraphs compile} --min-time 1.5 --json "$OUT_DIR/learner.json"
 fi
 if [[ " $SECTIONS " == *" collect "* ]]; then
   echo "=== collect" >>"$LOG"
@@ -64,7 +65,7 @@ if [[ " $SECTIONS " == *" collect "* ]]; then
 fi
 if [[ " $SECTIONS " == *" e2e "* ]]; then
   echo "=== e2e" >>"$LOG"
-  run 200 e2e "$PY" benchmarks/e2e_speed.py --device cuda --graphs --workers 12 --threads 2 \
-    --frames 30000 --json "$OUT_DIR/e2e.json"
+  run "${E2E_LIMIT:-200}" e2e "$PY" benchmarks/e2e_speed.py --device cuda --graphs --workers 12 --threads 2 \
+    --frames "${E2E_FRAMES:-30000}" --json "$OUT_DIR/e2e.json"
 fi
 cat "$TABLE"

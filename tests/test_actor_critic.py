@@ -117,3 +117,22 @@ def test_the_critic_owns_a_support_per_head():
         FusedCritic(6, 2, num_heads=2, v_min=-10.0, v_max=[10.0])
     with pytest.raises(ValueError, match="need v_min < v_max for every head"):
         FusedCritic(6, 2, num_heads=2, v_min=-10.0, v_max=[10.0, -20.0])
+
+
+def test_the_critics_atoms_follow_a_loss_moved_to_another_dtype():
+    """``loss.to(...)`` does not reach the critic's plain attributes: its atoms follow the logits
+    (on a GPU: one move in the warm-up, none in a captured CUDA graph)."""
+    from gentlerl.objectives import MultiHeadD4PGLoss
+
+    critic = make_critic(3, 1, 2, (16,), 11, v_min=-5.0, v_max=[5.0, 0.0])
+    loss = MultiHeadD4PGLoss(make_actor(3, 1, (16,)), critic, reward_keys=["a", "b"])
+    loss = loss.to(torch.float64)
+    td = TensorDict(
+        {"observation": torch.randn(4, 3, dtype=torch.float64),
+         "action": torch.rand(4, 1, dtype=torch.float64)}, [4]
+    )  # fmt: skip
+    with loss.value_network_params.to_module(loss.value_network):
+        out = loss.value_network(td)
+    atoms = out["state_action_value_atoms"]
+    assert atoms.dtype == torch.float64 and atoms.shape == (4, 2, 11)
+    torch.testing.assert_close(atoms[0, 1], torch.linspace(-5.0, 0.0, 11, dtype=torch.float64))

@@ -58,8 +58,8 @@ class FusedCritic(nn.Module):
         self.v_min, self.v_max = tuple(bounds[0]), tuple(bounds[1])
         self.num_heads = num_heads
         self.num_atoms = num_atoms
-        # The support where the parameters are (moved by ``_apply``): the forward makes no
-        # host-to-device copy, so that a CUDA graph can capture it.
+        # The support on the device (and dtype) of the last forward's logits: moved once, not at
+        # every call, so that a CUDA graph can capture the forward (its warm-up moves it).
         self._support = self.support
         widths = [obs_dim + action_dim, *hidden]
         self.layers = nn.ModuleList(HeadLinear(num_heads, i, o) for i, o in pairwise(widths))
@@ -84,13 +84,10 @@ class FusedCritic(nn.Module):
             h = nn.functional.elu(layer(h))
         logits = self.head(h)  # [K, B, atoms]
         logits = logits.transpose(0, 1).reshape(*batch_shape, self.num_heads, self.num_atoms)
+        if self._support.device != logits.device or self._support.dtype != logits.dtype:
+            # A loss's ``.to`` does not reach its networks' plain attributes: follow the logits.
+            self._support = self.support.to(device=logits.device, dtype=logits.dtype)
         return logits, self._support.expand_as(logits)
-
-    def _apply(self, fn: Any, recurse: bool = True) -> FusedCritic:
-        """``.to`` / ``.cuda`` / ``.double`` move the support with the parameters."""
-        super()._apply(fn, recurse)
-        self._support = fn(self.support)
-        return self
 
 
 def _per_head(value: float | Sequence[float], num_heads: int, name: str) -> list[float]:

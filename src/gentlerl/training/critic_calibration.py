@@ -175,7 +175,7 @@ def measure_calibration(
     bootstrap = torch.zeros_like(rewards)
     bootstrap[:, ends] = critic_values(loss, steps[ends].get("next"), act=True)[0].T
     terminated = steps.get(("next", keys.TERMINATED)).reshape(-1).bool()
-    cut = terminated & loss.episodic.reshape(-1, 1)  # [K, N]: non-episodic heads bootstrap
+    cut = terminated & loss.episodic.reshape(-1, 1).cpu()  # [K, N]: non-episodic heads bootstrap
     realised = discounted_returns(rewards, done, bootstrap, gamma, cut)
     # The part of G_t that is the critic's own bootstrap: the returns of zero rewards.
     borrowed = discounted_returns(torch.zeros_like(rewards), done, bootstrap, gamma, cut)
