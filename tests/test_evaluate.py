@@ -58,7 +58,7 @@ def test_cli_prints_json_and_checks_its_input(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["task"] == "touch" and out["episodes"] == 2 and out["success_rate"] == 1.0
     assert out["policy"] == str(path)
-    with pytest.raises(ValueError, match="episodes must be an integer >= 1, got 0"):
+    with pytest.raises(ValueError, match=r"episodes must be an integer in \[1, 10,000\], got 0"):
         evaluate_policy(path, 0)
     with pytest.raises(ValueError, match="unknown task 'grasp'"):
         evaluate_policy(path, 1, task="grasp")

@@ -32,6 +32,7 @@ from pathlib import Path
 
 from gentlerl.analysis.criteria import Verdict, judge
 from gentlerl.analysis.runs import Run, find_runs
+from gentlerl.files import write_atomic
 
 
 def load_final_evals(folder: Path) -> dict[str, float]:
@@ -141,6 +142,4 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl claims") -> No
         )
     print(table, end="")
     if args.markdown:
-        tmp = args.markdown.with_name(f".{args.markdown.name}.tmp")
-        tmp.write_text(table)
-        tmp.replace(args.markdown)
+        write_atomic(args.markdown, table)

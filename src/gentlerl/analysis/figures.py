@@ -28,6 +28,7 @@ import sys
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import IO
 
 import matplotlib
 
@@ -51,6 +52,7 @@ from gentlerl.analysis.runs import (  # noqa: E402
 )
 from gentlerl.analysis.summary import format_table, summary_markdown, summary_table  # noqa: E402
 from gentlerl.config.layout import FINAL_EVAL_EPISODES  # noqa: E402
+from gentlerl.files import write_atomic  # noqa: E402
 
 
 def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
@@ -238,14 +240,14 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
         plot_return_vs_impact(runs, out),
     ]
     rows = summary_table(runs)
-    tmp = out / ".summary.csv.tmp"
-    with tmp.open("w", newline="") as f:
+
+    def write_csv(f: IO) -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    tmp.replace(out / "summary.csv")
-    (out / ".summary.md.tmp").write_text(summary_markdown(rows))
-    (out / ".summary.md.tmp").replace(out / "summary.md")
+
+    write_atomic(out / "summary.csv", write_csv, newline="")
+    write_atomic(out / "summary.md", summary_markdown(rows))
     return [*paths, out / "summary.csv", out / "summary.md"]
 
 

@@ -21,6 +21,7 @@ import yaml
 from numpy.lib import recfunctions
 
 from gentlerl.config.layout import CONFIG, RunLayout
+from gentlerl.files import load_yaml
 
 Series = tuple[np.ndarray, np.ndarray]
 EVAL_SUCCESS = "eval/success_rate"
@@ -98,7 +99,7 @@ def load_run(path: str | Path) -> Run:
     if not layout.is_run():
         raise FileNotFoundError(f"{path} is not a gentlerl run directory (no {CONFIG})")
     try:
-        config = yaml.safe_load(config_path.read_text(errors="replace"))
+        config = load_yaml(config_path.read_text(errors="replace"))
     except yaml.YAMLError as err:
         raise ValueError(f"{config_path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(config, dict) or not {"task", "variant", "seed"} <= set(config):

@@ -31,6 +31,7 @@ from torchrl.envs.utils import ExplorationType
 
 from gentlerl.config.groups import MAX_HANDS
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import write_atomic
 
 #: Rollout modes: the deterministic actor, and the actor with its training noise.
 MODES = {"deterministic": ExplorationType.DETERMINISTIC, "noisy": ExplorationType.RANDOM}
@@ -242,7 +243,5 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl calibration") 
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.name}.tmp")
-        tmp.write_text(json.dumps(report, indent=1))
-        tmp.replace(out)
+        write_atomic(out, json.dumps(report, indent=1))
     return report

@@ -18,6 +18,7 @@ import os
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 import torch
@@ -25,6 +26,7 @@ import torch
 from gentlerl.apps.outputs import check_output_file
 from gentlerl.apps.parsing import command_parser
 from gentlerl.envs import CALIBRATIONS, TASKS, make_env
+from gentlerl.files import write_atomic
 
 SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
 
@@ -69,11 +71,15 @@ def evaluate_policy(
     """
     from gentlerl.training.builders import default_env_factory, make_eval_env
     from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
-    from gentlerl.training.evaluation import check_policy_fits, evaluate
+    from gentlerl.training.evaluation import (
+        MAX_EPISODE_STEPS,
+        check_episodes,
+        check_policy_fits,
+        evaluate,
+    )
     from gentlerl.training.logging import force_unit
 
-    if not (isinstance(episodes, int) and episodes >= 1):
-        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    check_episodes(episodes)
     if task is not None and task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
@@ -96,7 +102,7 @@ def evaluate_policy(
     try:
         check_policy_fits(env, actor, str(path))
         # The env's own time limit (200 steps by default) ends every episode before this cap.
-        _, per_episode = evaluate(env, actor, episodes, max_steps=100_000)
+        _, per_episode = evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
     finally:
         env.close()
     if episodes_csv is not None:
@@ -114,13 +120,14 @@ def write_episodes(
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
     header, rows = episode_table(-1 if frames is None else frames, episodes)
-    with tmp.open("w", newline="") as f:
+
+    def write(f: IO) -> None:
         writer = csv.writer(f)
         writer.writerow(header)
         writer.writerows(rows)
-    tmp.replace(path)
+
+    write_atomic(path, write, newline="")
     return path
 
 

@@ -106,10 +106,14 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
     """``episodes`` rollouts (``[T]`` tensordicts with ``impact`` in N) on ``env_name``: random
     actions, or the noise-free actor of the checkpoint ``policy`` (its run's env, in newtons)."""
     from gentlerl.training.builders import default_env_factory, make_eval_env
-    from gentlerl.training.evaluation import check_policy_fits, rollout_episodes
+    from gentlerl.training.evaluation import (
+        MAX_EPISODE_STEPS,
+        check_episodes,
+        check_policy_fits,
+        rollout_episodes,
+    )
 
-    if not (isinstance(episodes, int) and episodes >= 1):
-        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    check_episodes(episodes)
     actor = None
     if policy is not None:
         from gentlerl.training.checkpoint import load_checkpoint, policy_from_state
@@ -134,7 +138,7 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
     try:
         if actor is not None:
             check_policy_fits(env, actor, str(policy))
-        return rollout_episodes(env, actor, episodes, max_steps=100_000)
+        return rollout_episodes(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
     finally:
         env.close()
 

@@ -10,6 +10,7 @@ same points as Ray tasks.
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import signal
 import subprocess
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import open_append
 
 
 @dataclass(frozen=True)
@@ -54,8 +56,17 @@ def _slug(value: Any) -> str:
     return str(value)
 
 
+#: The most points a sweep's grid may have (counted before it is expanded).
+MAX_GRID_POINTS = 10_000
+
+
 def expand(grid: dict[str, list[Any]], out: Path) -> list[GridRun]:
-    """Every grid point (lam_prime dropped where the variant has no penalty surprise), deduplicated."""
+    """Every grid point (lam_prime dropped where the variant has no penalty surprise),
+    deduplicated; a grid of over :data:`MAX_GRID_POINTS` points is refused before expanding."""
+    size = math.prod(len(values) for values in grid.values())
+    if size > MAX_GRID_POINTS:
+        counts = " x ".join(str(len(values)) for values in grid.values())
+        raise ValueError(f"the grid has {counts} = {size:,} points, over {MAX_GRID_POINTS:,}")
     runs, seen = [], set()
     names = list(grid)
     for values in itertools.product(*(grid[n] for n in names)):
@@ -143,7 +154,7 @@ def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) ->
         return 0
     run.run_dir.mkdir(parents=True, exist_ok=True)
     log_path = RunLayout(run.run_dir).stdout
-    with log_path.open("a") as log:
+    with open_append(log_path) as log:  # a planted link is refused, not written through
         code = _call(command, log)
     if code != 0:
         lines = log_path.read_text(errors="replace").strip().splitlines()

@@ -18,6 +18,8 @@ from typing import Any
 
 import yaml
 
+from gentlerl.files import load_yaml
+
 __all__ = [
     "check_cluster",
     "check_key",
@@ -96,7 +98,7 @@ def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]
     field and every value plain (:func:`check_key`, :func:`check_value`), none choosing a Ray
     cluster unless ``allow_ray`` (:func:`check_cluster`)."""
     try:
-        spec = yaml.safe_load(Path(path).read_text())
+        spec = load_yaml(Path(path).read_text())
     except yaml.YAMLError as err:
         raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(spec, dict):
@@ -142,7 +144,7 @@ def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, 
         if not re.fullmatch(r"\+env\.kwargs\.[A-Za-z_][A-Za-z0-9_]*", key):
             check_key(key, where)
         try:
-            value = yaml.safe_load(text)
+            value = load_yaml(text)
         except yaml.YAMLError:
             raise ValueError(f"{where}: the value is not a plain number, name or list") from None
         check_value(key, value, where)

@@ -18,6 +18,7 @@ docs/DISTRIBUTED.md).
 from __future__ import annotations
 
 import argparse
+import re
 import signal
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -121,7 +122,13 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
     problem = _option_problem(args)
     if problem:
         raise SystemExit(f"{prog}: {problem}")
-    root = Path(args.out) / Path(args.sweep).stem
+    stem = Path(args.sweep).stem
+    if not re.fullmatch(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*", stem):
+        raise SystemExit(
+            f"{prog}: the sweep file's name {stem!r} cannot name its folder under --out (letters, "
+            "digits, '_', '-' and '.', not first)"
+        )
+    root = Path(args.out) / stem
     try:
         extra_items = parse_set(args.set, args.allow_ray_collector)
         grid = load_sweep(args.sweep, args.allow_ray_collector)

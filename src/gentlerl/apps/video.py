@@ -113,6 +113,11 @@ class ImpactPainter:
         self.model.geom_rgba[self.block] = BLOCK_RGBA[state] if state else self.block_rgba
 
 
+#: A video's most episodes, and most steps per episode (50 s at 20 Hz; the hand's time limit is
+#: 200 steps): frames are kept in memory, ~170 KB each at 240 x 240.
+MAX_VIDEO_EPISODES, MAX_VIDEO_STEPS = 10, 1_000
+
+
 @torch.no_grad()
 def record_rollouts(
     env: HandEnv,
@@ -121,10 +126,12 @@ def record_rollouts(
     size: int = 240,
     hold: int = 10,
     panel: bool = True,
+    max_steps: int = MAX_VIDEO_STEPS,
 ) -> list[np.ndarray]:
     """Frames (uint8 ``[H, W, 3]``) of deterministic rollouts; the last frame is held ``hold`` times.
 
     With ``panel`` each frame gets :func:`draw_impact_panel` (``H = size + panel_height(size)``).
+    An episode the env has not ended after ``max_steps`` steps is cut there.
     """
     painter = ImpactPainter(env)
     frames = []
@@ -138,7 +145,7 @@ def record_rollouts(
         for _ in range(episodes):
             td = env.reset()
             frames.append(frame(np.zeros(len(FINGERTIPS)), False, False))
-            while True:  # the env ends every episode (time limit, success or break)
+            for _ in range(max_steps):  # the env ends an episode first (limit, success, break)
                 td = env.step(actor(td))
                 nxt = td["next"]
                 m = impact(td[keys.TOUCH], nxt[keys.TOUCH]).numpy()
@@ -198,10 +205,10 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl video") -> Non
     from gentlerl.training.evaluation import check_policy_fits
 
     args = build_parser(prog).parse_args(argv)
-    if args.episodes < 1 or args.size < 16 or args.fps < 1:
+    if not 1 <= args.episodes <= MAX_VIDEO_EPISODES or not 16 <= args.size <= 2048 or args.fps < 1:
         raise SystemExit(
-            f"--episodes and --fps must be >= 1 and --size >= 16, got {args.episodes}, "
-            f"{args.fps} and {args.size}"
+            f"--episodes must be in [1, {MAX_VIDEO_EPISODES}], --size in [16, 2048] and --fps "
+            f">= 1, got {args.episodes}, {args.size} and {args.fps}"
         )
     if not 0 <= args.seed < 2**32:
         raise SystemExit(f"--seed must be in [0, 2**32), got {args.seed}")

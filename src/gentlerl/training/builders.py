@@ -25,6 +25,7 @@ from gentlerl.config import CollectorConfig
 from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
+from gentlerl.files import write_atomic
 from gentlerl.training import guards
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.logging import RunLogger, episode_transforms
@@ -293,7 +294,7 @@ def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:
 def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
     """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
     config = guards.plain(cfg.to_dict())
-    layout.config.write_text(yaml.safe_dump(config))
+    write_atomic(layout.config, yaml.safe_dump(config))
     return config
 
 

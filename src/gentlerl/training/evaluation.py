@@ -12,6 +12,17 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
 
+#: The most episodes a command rolls out (``gentlerl evaluate`` / ``forces``: ~1 hour at 200
+#: steps each), and the most steps of one of its episodes (the env's time limit ends them first).
+MAX_EPISODES, MAX_EPISODE_STEPS = 10_000, 100_000
+
+
+def check_episodes(episodes: object, most: int = MAX_EPISODES) -> int:
+    """``episodes`` if it is an integer in ``[1, most]``, else a one-line ``ValueError``."""
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or not 1 <= episodes <= most:
+        raise ValueError(f"episodes must be an integer in [1, {most:,}], got {episodes!r}")
+    return episodes
+
 
 def _split_episodes(rollout: TensorDictBase) -> list[TensorDictBase]:
     """Each row of a ``[B, T]`` rollout up to and including its first ``done`` (all ``T`` steps

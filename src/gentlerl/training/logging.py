@@ -8,7 +8,6 @@ scalar under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames
 from __future__ import annotations
 
 import csv
-import os
 import time
 from collections import deque
 from collections.abc import Mapping, Sequence
@@ -24,6 +23,7 @@ from tqdm.auto import tqdm
 
 from gentlerl import keys
 from gentlerl.config.layout import LOGS, RunLayout
+from gentlerl.files import open_append, write_atomic
 from gentlerl.training.evaluation import OUTCOMES
 
 #: The columns of an episodes CSV; ``success`` and ``broken`` only where the env defines them.
@@ -91,15 +91,13 @@ class RunLogger:
             lines = path.read_text().splitlines(keepends=True)
             header = lines[:1] if path == episodes else []
             kept = [row for row in lines[len(header) :] if int(row.split(",", 1)[0]) <= frames]
-            tmp = path.with_suffix(".csv.tmp")
-            tmp.write_text("".join(header + kept))
-            os.replace(tmp, path)
+            write_atomic(path, "".join(header + kept))
 
     def log_eval_episodes(self, frames: int, episodes: list[dict[str, float]]) -> None:
         path = self.layout.eval_episodes
         header, rows = episode_table(frames, episodes)
         new = not path.exists()
-        with path.open("a", newline="") as f:
+        with open_append(path, newline="") as f:
             writer = csv.writer(f)
             if new:
                 writer.writerow(header)

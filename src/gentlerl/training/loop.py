@@ -23,6 +23,7 @@ from torchrl.envs import EnvBase
 
 from gentlerl.agent.learner import TrainingState
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import write_atomic
 from gentlerl.training import guards
 from gentlerl.training.builders import (
     AGENT_KEYS,
@@ -91,7 +92,7 @@ class Trainer:
             self._collect(logger, eval_env)
         summary = self._final_evaluation(logger, eval_env)
         self.save()
-        self.layout.done.write_text("done\n")
+        write_atomic(self.layout.done, "done\n")
         logger.close()
         eval_env.close()
         return summary

@@ -4,6 +4,9 @@ Two ``gentlerl train ... resume=auto`` on one run directory would both append to
 and overwrite each other's checkpoints. The lock file names its holder (pid and host) so the
 second one is refused in one line saying who holds it. ``flock`` is released by the kernel when
 the holder dies, so a lock left by a killed run is stale and the next run takes it over.
+
+A run writes only files it makes: a symbolic link in the run directory (planted, say, as
+``.lock`` or ``config.yaml`` pointing at a file elsewhere) is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import socket
 from pathlib import Path
 
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import LinkRefusedError, links_under
 
 
 class RunLockedError(OSError):
@@ -26,6 +30,7 @@ class RunLock:
 
     Raises:
         RunLockedError: another live process holds it.
+        LinkRefusedError: the run directory holds a symbolic link (nothing was written).
     """
 
     def __init__(self, run_dir: str | os.PathLike) -> None:
@@ -38,8 +43,9 @@ class RunLock:
         run_dir = self.path.parent
         self._made = [d for d in (run_dir, *run_dir.parents) if not d.exists()]
         run_dir.mkdir(parents=True, exist_ok=True)
+        self._refuse_links(run_dir)
         for _ in range(10):  # the file may be removed by its holder between open and flock
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -57,6 +63,16 @@ class RunLock:
                 return self
             os.close(fd)
         raise RunLockedError(f"could not take the lock {self.path}: it keeps changing")
+
+    def _refuse_links(self, run_dir: Path) -> None:
+        links = links_under(run_dir)
+        if links:
+            self._remove_empty_dir()
+            shown = ", ".join(str(p) for p in links[:3]) + (" ..." if len(links) > 3 else "")
+            raise LinkRefusedError(
+                f"run_dir={str(run_dir)!r} holds {len(links)} symbolic link(s) ({shown}): a run "
+                "writes only files it makes there; remove them or choose another run_dir"
+            )
 
     def release(self) -> None:
         if self._fd is not None:

@@ -1,0 +1,92 @@
+"""gentlerl.files and the run directory: nothing is written through a planted symbolic link."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from gentlerl.files import LinkRefusedError, links_under, open_append, write_atomic
+from gentlerl.training.run_lock import RunLock
+
+
+def test_write_atomic_replaces_a_link_and_leaves_its_target_alone(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    link = tmp_path / "out.txt"
+    link.symlink_to(victim)
+    write_atomic(link, "new\n")
+    assert victim.read_text() == "precious\n"
+    assert not link.is_symlink() and link.read_text() == "new\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt", "victim.txt"]  # no temp left
+
+
+def test_write_atomic_with_a_writer_and_bytes(tmp_path):
+    write_atomic(tmp_path / "a.csv", lambda f: f.write("x,y\n1,2\n"), newline="")
+    write_atomic(tmp_path / "b.bin", b"\x00\x01")
+    assert (tmp_path / "a.csv").read_text() == "x,y\n1,2\n"
+    assert (tmp_path / "b.bin").read_bytes() == b"\x00\x01"
+
+
+def test_write_atomic_leaves_the_old_file_when_the_writer_fails(tmp_path):
+    path = tmp_path / "a.txt"
+    path.write_text("old")
+
+    def fail(f):
+        f.write("half")
+        raise RuntimeError("disk on fire")
+
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        write_atomic(path, fail)
+    assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_open_append_refuses_a_link(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    (tmp_path / "log").symlink_to(victim)
+    with pytest.raises(LinkRefusedError, match="log is a symbolic link: gentlerl writes no file"):
+        open_append(tmp_path / "log")
+    assert victim.read_text() == "precious\n"
+    with open_append(tmp_path / "real.log") as f:
+        f.write("a\n")
+    assert (tmp_path / "real.log").read_text() == "a\n"
+
+
+def test_links_under_finds_file_and_folder_links_without_following_them(tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    run = tmp_path / "run"
+    (run / "logs").mkdir(parents=True)
+    (run / "logs" / "x.csv").symlink_to(tmp_path / "elsewhere" / "x")
+    (run / "scalars").symlink_to(tmp_path / "elsewhere")
+    assert sorted(p.name for p in links_under(run)) == ["scalars", "x.csv"]
+    assert links_under(tmp_path / "elsewhere") == []
+
+
+@pytest.mark.parametrize("name", [".lock", "config.yaml", "logs"])
+def test_a_run_lock_refuses_a_run_dir_with_a_planted_link(tmp_path, name):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    run = tmp_path / "sl" / "d"
+    run.mkdir(parents=True)
+    (run / name).symlink_to(victim)
+    with pytest.raises(LinkRefusedError, match=r"holds 1 symbolic link\(s\) .*: a run writes only"):
+        RunLock(run).acquire()
+    assert victim.read_text() == "precious\n"
+
+
+def test_gentlerl_train_through_a_planted_lock_link_writes_nothing(tmp_path):
+    """The finding: ``ln -s victim sl/d/.lock && gentlerl train run_dir=sl/d`` truncated it."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    run = tmp_path / "sl" / "d"
+    run.mkdir(parents=True)
+    (run / ".lock").symlink_to(victim)
+    proc = subprocess.run(
+        [sys.executable, "-m", "gentlerl", "train", f"run_dir={run}", "collector.total_frames=200"],
+        capture_output=True, text=True, timeout=240, env={**os.environ, "GENTLERL_DEBUG": ""},
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    assert "symbolic link" in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+    assert victim.read_text() == "precious\n"
+    assert sorted(p.name for p in run.iterdir()) == [".lock"]
