@@ -169,3 +169,11 @@ def test_the_first_screen_numbers_stand_in_the_files_they_cite():
         for number in numbers:
             assert number in source, f"{number} of {cells[0]!r} is not in {cells[-1]}"
     assert len(README.read_text().splitlines()) < 300  # a README, not a lab notebook
+
+
+def test_the_gpu_learner_rate_stands_in_the_benchmark_results():
+    """The install notes' paper-scale GPU rate is the one benchmarks/RESULTS.md measured."""
+    match = re.search(r"\(([\d,]+) paper-scale updates/s on an H200", README.read_text())
+    assert match, "the README's GPU learner sentence is gone"
+    results = (README.parent / "benchmarks" / "RESULTS.md").read_text()
+    assert f"**{match.group(1)}" in results or f"{match.group(1)}–" in results

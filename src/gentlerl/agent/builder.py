@@ -113,6 +113,7 @@ class AgentBuilder:
             feature_shapes=self.feature_shapes,
             seed=self.cfg.seed,
             force_key=self.cfg.env.force,
+            device=self.cfg.learner.device,  # the models learn beside the learner
         )
 
     def make_learner(self) -> Learner:

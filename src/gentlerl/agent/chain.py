@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import torch
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import Compose
 
@@ -10,11 +11,23 @@ from gentlerl.transforms import ModelRewardTransform
 
 
 class RewardChain(Compose):
-    """The reward transforms; applied to a batch, first checks that it holds what they read."""
+    """The reward transforms; applied to a batch, first checks that it holds what they read.
 
-    def __init__(self, *transforms, obs_key: str, force_key: str) -> None:
+    ``device``: where the reward models are (``None``: wherever the batch is). A batch applied
+    from elsewhere (a CPU collector's, a GPU learner's models) is scored there and returned on
+    its own device.
+    """
+
+    def __init__(
+        self,
+        *transforms,
+        obs_key: str,
+        force_key: str,
+        device: torch.device | str | None = None,
+    ) -> None:
         super().__init__(*transforms)
         self.obs_key, self.force_key = obs_key, force_key
+        self.models_device = None if device is None else torch.device(device)
 
     def check_keys(self, tensordict: TensorDictBase) -> None:
         """A ``KeyError`` naming the entries that ``tensordict`` lacks: the force (at the root and
@@ -38,4 +51,7 @@ class RewardChain(Compose):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         self.check_keys(tensordict)
-        return super().forward(tensordict)
+        home, there = tensordict.device, self.models_device
+        if there is None or home is None or home == there:
+            return super().forward(tensordict)
+        return super().forward(tensordict.to(there)).to(home)

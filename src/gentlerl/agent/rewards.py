@@ -102,7 +102,9 @@ class IntrinsicRewards:
                 self.losses[component.model] = part.loss
             if part.target_updater is not None:
                 self._updaters[component.model] = part.target_updater
-        self.transform = RewardChain(*transforms, obs_key=ing.obs_key, force_key=force_key)
+        self.transform = RewardChain(
+            *transforms, obs_key=ing.obs_key, force_key=force_key, device=self.device
+        )
         self.optimizers = {
             # fused: one kernel per step instead of ~10 per parameter tensor
             name: torch.optim.Adam(loss.parameters(), lr=settings.lr_model, fused=True)
@@ -214,10 +216,11 @@ class IntrinsicRewards:
                 "recompute_surprise needs each transition's window of steps ('window'), written "
                 "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
             )
-        flat, steps = window.reshape(-1), batch.get("steps_to_next_obs")
+        flat, steps = window.reshape(-1).to(self.device), batch.get("steps_to_next_obs")
         for t in self.recomputed:
             key = t.out_keys[0]
             per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
+            per_step = per_step.to(steps.device)  # the models' device -> the batch's
             batch.set(("next", key), nstep_return(per_step, steps, gamma))
             contact = window.get(("next", t.penalty_key)) < 0
             counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)

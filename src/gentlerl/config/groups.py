@@ -185,8 +185,8 @@ class LearnerConfig:
     )
     device: str = setting(
         "cpu",
-        "where the D4PG networks and their updates run: cpu, cuda or cuda:N (collection, the "
-        "reward models and the replay stay on the CPU; the acting actor is a CPU copy)",
+        "where the D4PG networks, the reward models and their updates run: cpu, cuda or cuda:N "
+        "(collection and the learner's replay stay on the CPU; the acting actor is a CPU copy)",
         resumable=True,
     )
 

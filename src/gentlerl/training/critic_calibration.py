@@ -222,7 +222,8 @@ def penalty_surprise_sources(
         return None
     surprise = found[0]
     steps = _rewarded_steps(transform, episodes)
-    parts = surprise.sources(steps)
+    device = getattr(transform, "models_device", None) or steps.device
+    parts = {k: v.cpu() for k, v in surprise.sources(steps.to(device)).items()}
     contact = parts["penalty"] < 0
     parts |= {
         "r_sp": steps.get(("next", surprise.out_keys[0])),
