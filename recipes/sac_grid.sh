@@ -11,20 +11,29 @@ while [ $# -gt 0 ]; do
     *) echo "unknown argument: $1 (expected --out DIR or --workers N)" >&2; exit 2 ;;
   esac
 done
+case "$workers" in
+  '' | *[!0-9]* | 0) echo "--workers must be a positive integer, got '$workers'" >&2; exit 2 ;;
+esac
 here="$(cd "$(dirname "$0")" && pwd)"
-runs=()
+failed=0
+# Each run's arguments stay separate words (no shell re-reads --out); its output goes to
+# DIR.log, and a failure is reported with that log's last line.
 for task in touch fragile; do
   lam="[2,2]"; [ "$task" = fragile ] && lam="[2,1.5]"
   for variant in r r+rf+rsp; do
     for seed in 0 1 2; do
       dir="$out/$task/$variant/seed$seed"
       [ -f "$dir/final_eval.json" ] && continue
-      runs+=("task=$task variant=$variant seed=$seed lam_prime=$lam run_dir=$dir")
+      while [ "$(jobs -rp | wc -l)" -ge "$workers" ]; do wait -n || failed=1; done
+      mkdir -p -- "$(dirname -- "$dir")"
+      (
+        python "$here/sac_gentle.py" "task=$task" "variant=$variant" "seed=$seed" \
+          "lam_prime=$lam" "run_dir=$dir" >"$dir.log" 2>&1 ||
+          { echo "failed: $dir: $(tail -n 1 -- "$dir.log")" >&2; exit 1; }
+      ) &
     done
   done
 done
-if [ ${#runs[@]} -gt 0 ]; then
-  printf '%s\n' "${runs[@]}" | xargs -P "$workers" -I{} sh -c \
-    "python '$here/sac_gentle.py' {} > /dev/null 2>&1 || echo 'failed: {}' >&2"
-fi
+while [ "$(jobs -rp | wc -l)" -gt 0 ]; do wait -n || failed=1; done
 python "$here/sac_table.py" "$out"
+exit "$failed"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 import torch
@@ -79,3 +80,10 @@ def test_command_on_finger_spin_prints_the_rule_and_measures_in_newtons(capsys):
 def test_command_names_an_unknown_env():
     with pytest.raises(ValueError, match="no task finger-nope"):
         forces.main(["dm_control:finger-nope", "--episodes", "1", "--reference-impact", "1"])
+
+
+def test_a_policy_measured_under_another_env_name_is_refused():
+    """The finding: ``forces ENV --policy hand_policy.pt`` printed the hand's numbers as ENV's."""
+    policy = Path(__file__).resolve().parents[1] / "docs/policies/touch/r/seed0.pt"
+    with pytest.raises(ValueError, match=r"acts on 'touch' .* ENV is 'dm_control:finger-spin'"):
+        forces.measure("dm_control:finger-spin", 1, policy=str(policy))

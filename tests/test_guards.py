@@ -120,7 +120,8 @@ def test_training_stops_at_the_first_non_finite_reward_keeping_the_checkpoint(tm
     with pytest.raises(NonFiniteError) as err:
         train(cfg, lambda: _NaNTouchEnv(time_limit=50))
     message = str(err.value)
-    assert message.startswith("non-finite penalty at frames 101-200: training stopped")
+    assert message.startswith("non-finite force at frames 101-200: training stopped")
+    assert "'touch' holds a non-finite force (nan) at s_t, index [29], site 0" in message
     assert f"the last checkpoint {tmp_path / 'checkpoint.pt'} is intact" in message
     assert load_checkpoint(tmp_path / "checkpoint.pt")["counters"]["frames"] == 100
     assert not (tmp_path / "DONE").exists()

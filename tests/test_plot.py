@@ -244,3 +244,12 @@ def test_the_printed_table_leaves_out_columns_no_run_has_data_for():
     assert table.splitlines()[0] == "| task | final_return |"
     rows[1]["final_success"] = 0.5  # one run with data keeps the column, nan where it has none
     assert "| finger-spin | nan | 145.50 |" in format_table(rows)
+
+
+def test_a_run_name_with_a_line_break_stays_one_markdown_cell():
+    """The finding: a run folder named with a newline injected a row into summary.md."""
+    from gentlerl.analysis.summary import format_table
+
+    table = format_table([{"run": "evil\n| 1.00 | 0.0 |", "success": 0.5}])
+    lines = table.splitlines()
+    assert len(lines) == 3 and lines[2] == "| evil \\| 1.00 \\| 0.0 \\| | 0.50 |"

@@ -71,3 +71,28 @@ def test_the_table_applies_the_preregistered_verdicts():
     assert table.verdict("touch", never, {"mean_success": 1.0, "successful_impact": 2.5}) == (
         "more successful than r, which never succeeds; impacts not comparable"
     )
+
+
+def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path):
+    """The finding: ``sac_grid.sh --out 'sg$(touch X)'`` ran the command (xargs ... sh -c)."""
+    import os
+    import subprocess
+
+    stub = tmp_path / "bin"
+    stub.mkdir()
+    (stub / "python").write_text('#!/bin/sh\nprintf "%s\\n" "$@" >> "$ARGV_LOG"\n')
+    (stub / "python").chmod(0o755)
+    out = "sg$(touch X) with space"
+    env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}", "ARGV_LOG": str(tmp_path / "argv")}
+    proc = subprocess.run(
+        ["bash", str(RECIPES / "sac_grid.sh"), "--out", out, "--workers", "2"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert not (tmp_path / "X").exists()
+    argv = (tmp_path / "argv").read_text().splitlines()
+    assert f"run_dir={out}/touch/r/seed0" in argv and argv.count("seed=2") == 4
+    bad = subprocess.run(
+        ["bash", str(RECIPES / "sac_grid.sh"), "--workers", "0"], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "--workers must be a positive integer, got '0'" in bad.stderr

@@ -16,7 +16,12 @@ from gentlerl import keys
 from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, information_gain, mixture_moments
-from gentlerl.transforms import DynamicsSurprise, ImpactPenalty, PenaltySurprise
+from gentlerl.transforms import (
+    DynamicsSurprise,
+    ImpactPenalty,
+    NonFiniteForceError,
+    PenaltySurprise,
+)
 from tests.toy_env import ToyHandEnv
 
 HAND_FEATURES = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
@@ -482,25 +487,32 @@ def _transitions(touch, next_touch):
     bad=st.sampled_from([float("nan"), float("inf"), float("-inf")]),
     in_next=st.booleans(),
 )
-def test_no_finite_reward_from_non_finite_forces(variant, row, site, channel, bad, in_next):
-    """A NaN / inf force at s_t or s_{t+1} makes every reward of that transition non-finite (so
-    the loop stops on it); the other transitions keep finite rewards."""
+def test_a_non_finite_force_is_refused_naming_where(variant, row, site, channel, bad, in_next):
+    """A NaN / inf force at s_t or s_{t+1} is an error naming the key, the step and the index
+    (it would make every reward of that transition and the models non-finite)."""
     stack = _active_stack(variant)
     touch, next_touch = torch.rand(4, 5, 3) * 3, torch.rand(4, 5, 3) * 3
     (next_touch if in_next else touch)[row, site, channel] = bad
-    out = stack.transform(_transitions(touch, next_touch))
-    others = [i for i in range(4) if i != row]
-    for key in [k for k in stack.reward_keys if k != keys.REWARD] + [keys.PENALTY]:
-        reward = out["next", key].squeeze(-1)
-        assert not torch.isfinite(reward[row]), (key, reward)
-        assert torch.isfinite(reward[others]).all(), (key, reward)
+    step = r"s_t\+1" if in_next else "s_t"
+    with pytest.raises(NonFiniteForceError, match=rf"\({bad}\) at {step}, index \[{row}\], "
+                       rf"site {site}, channel {channel}"):  # fmt: skip
+        stack.transform(_transitions(touch, next_touch))
 
 
-def test_the_intrinsic_gate_keeps_nan_while_closed():
-    stack = make_reward_transforms("r+rf+rsp", reward_delay=10, hidden=16, ensemble_size=2)
-    stack.step(0)
-    assert not stack.intrinsic_on
-    touch = torch.rand(2, 5, 3)
-    touch[0, 0, 0] = float("nan")
-    surprise = stack.transform(_transitions(touch, touch + 1))["next", keys.PENALTY_SURPRISE]
-    assert torch.isnan(surprise[0]).all() and surprise[1].item() == 0.0
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+def test_impact_penalty_refuses_a_non_finite_force_naming_the_key_and_step(bad):
+    """The finding: NaN / inf forces through the drop-in gave NaN rewards with no error."""
+    force = torch.zeros(4, 5, 3)
+    nxt = force.clone()
+    nxt[2, 1, 0] = bad
+    td = TensorDict({"touch": force, "next": {"touch": nxt}}, [4])
+    with pytest.raises(ValueError, match=rf"'touch' holds a non-finite force \({bad}\) at "
+                       r"s_t\+1, index \[2\], site 1, channel 0"):  # fmt: skip
+        ImpactPenalty()(td)
+
+
+def test_impact_penalty_refuses_an_integer_force():
+    td = TensorDict({"touch": torch.zeros(5, 3, dtype=torch.int64),
+                     "next": {"touch": torch.ones(5, 3, dtype=torch.int64)}})  # fmt: skip
+    with pytest.raises(ValueError, match="'touch' must be a floating-point force, got torch.int64"):
+        ImpactPenalty()(td)

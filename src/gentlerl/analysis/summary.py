@@ -218,7 +218,12 @@ def _reached(times: list[tuple[float, float]]) -> np.ndarray:
 
 
 def _cell(value: object) -> str:
-    return f"{value:.2f}" if isinstance(value, float) else str(value)
+    """One markdown cell: floats to 2 decimals; a name's line breaks and pipes escaped (a run
+    folder named ``a\n| x |`` stays one cell, not an injected row)."""
+    if isinstance(value, float):
+        return f"{value:.2f}"
+    text = str(value).replace("\\", "\\\\").replace("|", "\\|")
+    return " ".join(text.splitlines())
 
 
 def _no_data(value: object) -> bool:

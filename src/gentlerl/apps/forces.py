@@ -119,6 +119,12 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
         from gentlerl.training.checkpoint import load_checkpoint, policy_from_state
 
         cfg, actor = policy_from_state(load_checkpoint(policy), policy)
+        trained = cfg.env.name or cfg.task
+        if env_name != trained:  # the numbers would be printed under a name they are not of
+            raise ValueError(
+                f"{policy} acts on {trained!r} (the env it trained on); ENV is {env_name!r}: "
+                f"measure it as `gentlerl forces {trained} --policy {policy}`"
+            )
         cfg = replace(cfg, env=replace(cfg.env, force_scale=1.0), seed=seed)
         force_key = cfg.env.force if cfg.env.name is not None else keys.TOUCH
         factory = default_env_factory(cfg)

@@ -168,6 +168,14 @@ def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) 
             )
 
 
+def non_finite_force(err: Exception, where: str, checkpoint: Path) -> NonFiniteError:
+    """The stop for a NaN / inf force reading (``err``, from the reward transforms) at ``where``."""
+    return NonFiniteError(
+        f"non-finite force at {where}: training stopped; {checkpoint_note(checkpoint)} ({err}; "
+        "check the env's force sensor)"
+    )
+
+
 def checkpoint_note(checkpoint: Path) -> str:
     """What a stopped run left to resume from: its last checkpoint, or none yet."""
     if checkpoint.exists():

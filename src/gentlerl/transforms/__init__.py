@@ -33,7 +33,7 @@ from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.calibration import TouchCalibration
 from gentlerl.transforms.fresh import FreshRewards
 from gentlerl.transforms.icm import ICMReward
-from gentlerl.transforms.impact import ImpactPenalty
+from gentlerl.transforms.impact import ImpactPenalty, NonFiniteForceError
 from gentlerl.transforms.sum import SumRewards
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
@@ -48,6 +48,7 @@ __all__ = [
     "FreshRewards",
     "ICMReward",
     "ImpactPenalty",
+    "NonFiniteForceError",
     "ModelRewardTransform",
     "PenaltySurprise",
     "SumRewards",

@@ -70,6 +70,29 @@ class ImpactPenalty(TransitionTransform):
                 f"ImpactPenalty: {self.in_keys[0]!r} must be [..., n_sites, n_channels] at both "
                 f"steps, got {tuple(force.shape)} and {tuple(next_force.shape)}"
             )
+        _check_force(self.in_keys[0], force, "s_t")
+        _check_force(self.in_keys[0], next_force, "s_t+1")
         m = impact(force, next_force)
         penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
         return {self.out_keys[0]: m, self.out_keys[1]: penalty}
+
+
+class NonFiniteForceError(ValueError):
+    """A force reading is NaN or infinite (the rewards and models would all become NaN)."""
+
+
+def _check_force(key: object, force: torch.Tensor, step: str) -> None:
+    """A floating-point force, finite everywhere: else one line naming the key, the ``step``
+    (``"s_t"`` or ``"s_t+1"``) and where (the index over the leading dims, site, channel)."""
+    if not force.is_floating_point():
+        raise ValueError(
+            f"ImpactPenalty: {key!r} must be a floating-point force, got {force.dtype}"
+        )
+    finite = torch.isfinite(force)
+    if not bool(finite.all()):
+        index = (~finite).nonzero()[0].tolist()
+        value = force[tuple(index)].item()
+        raise NonFiniteForceError(
+            f"ImpactPenalty: {key!r} holds a non-finite force ({value}) at {step}, index "
+            f"{index[:-2] or '()'}, site {index[-2]}, channel {index[-1]}"
+        )
