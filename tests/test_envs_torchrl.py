@@ -168,3 +168,19 @@ def test_steps_carry_the_cpu_device_and_collectors_cast_nothing(hand_env):
         assert batch.batch_size == (2, 4) and batch.device == torch.device("cpu")
     finally:
         collector.shutdown()
+
+
+def test_the_hand_env_refuses_pickle_in_one_line():
+    """The finding: unpickling the hand env (or a SumRewards appended to it) aborted the process
+    with a double free; it is now a TypeError before anything is written."""
+    import pickle
+
+    from torchrl.envs import TransformedEnv
+
+    from gentlerl.transforms import SumRewards
+
+    for env in (make_env("touch", seed=0), make_env("touch", seed=0, num_envs=2)):
+        with pytest.raises(TypeError, match=r"cannot be pickled \(its MuJoCo model would be freed"):
+            pickle.dumps(env)
+    with pytest.raises(TypeError, match="HandEnv cannot be pickled"):
+        pickle.dumps(TransformedEnv(make_env("touch", seed=0), SumRewards(["reward"])))

@@ -516,3 +516,25 @@ def test_impact_penalty_refuses_an_integer_force():
                      "next": {"touch": torch.ones(5, 3, dtype=torch.int64)}})  # fmt: skip
     with pytest.raises(ValueError, match="'touch' must be a floating-point force, got torch.int64"):
         ImpactPenalty()(td)
+
+
+def test_a_deep_copy_shares_the_model_and_the_gate_and_an_unpickled_one_refuses():
+    """The finding: copy.deepcopy / pickle of rewards.transform gave a copy with a model of its
+    own whose gate never opened (r^sp 0 while the original paid 2.19), silently."""
+    import copy
+    import pickle
+
+    stack = make_reward_transforms("r+rf+rsp", reward_delay=5, hidden=16, ensemble_size=2)
+    copied = copy.deepcopy(stack.transform)
+    pickled = pickle.loads(pickle.dumps(stack.transform))
+    stack.step(5)  # the gate opens: in the deep copy too
+    surprise = [t for t in copied if isinstance(t, PenaltySurprise)][0]
+    original = [t for t in stack.transform if isinstance(t, PenaltySurprise)][0]
+    assert bool(surprise.active) and surprise.model is original.model
+    batch = _transitions(torch.rand(4, 5, 3), torch.rand(4, 5, 3) + 4)
+    torch.testing.assert_close(
+        copied(batch.clone())["next", keys.PENALTY_SURPRISE],
+        stack.transform(batch.clone())["next", keys.PENALTY_SURPRISE],
+    )
+    with pytest.raises(RuntimeError, match="PenaltySurprise was unpickled: its model is a copy"):
+        pickled(batch.clone())

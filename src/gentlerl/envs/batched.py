@@ -26,6 +26,7 @@ from gentlerl.envs.environment import HandEnvironment
 from gentlerl.envs.rendering import render
 from gentlerl.envs.torchrl_env import (
     FLAG_KEYS,
+    NotPicklable,
     hand_specs,
     hand_tensordict,
     step_flags,
@@ -57,7 +58,7 @@ def check_num_threads(num_threads: int | None, num_envs: int) -> int:
     return min(int(num_threads), num_envs)  # a thread without a hand would idle
 
 
-class BatchedHandEnv(EnvBase):
+class BatchedHandEnv(NotPicklable, EnvBase):
     """``len(dm_envs)`` hands as one TorchRL env with batch size ``[N]``; see the module doc.
 
     Keys, shapes (with a leading ``N``), dtypes and task rules are those of

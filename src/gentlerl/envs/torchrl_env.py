@@ -98,7 +98,19 @@ def hand_tensordict(
     return TensorDict._new_unsafe(out, batch_size=torch.Size(batch), device=_CPU, nested=False)
 
 
-class HandEnv(EnvBase):
+class NotPicklable:
+    """Refuses ``pickle`` in one line: a MuJoCo model unpickled in the same process frees its
+    memory twice (the process aborts, "double free or corruption"). Processes build their own
+    hands from a factory (``partial(make_env, task, ...)``), as TorchRL's collectors do."""
+
+    def __reduce_ex__(self, protocol: object) -> object:
+        raise TypeError(
+            f"{type(self).__name__} cannot be pickled (its MuJoCo model would be freed twice): "
+            "pass a factory, e.g. functools.partial(gentlerl.envs.make_env, task), instead"
+        )
+
+
+class HandEnv(NotPicklable, EnvBase):
     """TorchRL view of a :func:`gentlerl.envs.make_dm_env` environment.
 
     Writes float32 ``joint_pos`` [24], ``joint_vel`` [24], ``touch`` [5, 3], ``touch_grid``

@@ -119,7 +119,9 @@ class ModelRewardTransform(TransitionTransform):
     training loop switches it on after the reward delay.
 
     It runs only in the process that built it: a copy sent to another process (a collector
-    worker) reads a model that the loss's updates never reach, so :meth:`predict` raises there.
+    worker) reads a model that the loss's updates never reach, so :meth:`predict` raises there,
+    as it does in an unpickled copy. ``copy.deepcopy`` shares the model, its parameters and the
+    gate, as :meth:`clone` does (a copy with a model of its own would never learn).
     """
 
     def __init__(
@@ -141,8 +143,35 @@ class ModelRewardTransform(TransitionTransform):
         self.register_buffer("active", torch.tensor(False))
         self.owner_pid = os.getpid()
 
+    def __deepcopy__(self, memo: dict) -> ModelRewardTransform:
+        return self.clone()
+
+    def __setstate__(self, state: dict) -> None:
+        super().__setstate__(state)
+        self.owner_pid = None  # unpickled: its model is a copy that no update reaches
+
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
+        self.check_owner()
+        return super()._step(tensordict, next_tensordict)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        self.check_owner()
+        return super().forward(tensordict)
+
     def predict(self, tensordict: TensorDictBase) -> Any:
         """``model.predict`` (or ``model(...)``) with :attr:`params`, without gradient."""
+        self.check_owner()
+        with torch.no_grad(), self.params.to_module(self.model, preserve_module_state=False):
+            return self.model.predict(tensordict)
+
+    def check_owner(self) -> None:
+        """Raise unless this copy reads the model its loss trains (same process, not unpickled),
+        whether or not this batch has a step the model is asked about."""
+        if self.owner_pid is None:
+            raise RuntimeError(
+                f"{type(self).__name__} was unpickled: its model is a copy that the loss's "
+                "updates never reach. Share the transform (clone() or copy.deepcopy()) instead"
+            )
         if os.getpid() != self.owner_pid:
             raise RuntimeError(
                 f"{type(self).__name__} runs in process {os.getpid()} but its model trains in "
@@ -150,8 +179,6 @@ class ModelRewardTransform(TransitionTransform):
                 "reward transforms in the trainer's process (to collected batches, to the "
                 "batched env outside its workers, or as IntrinsicRewards.sampling_transform())"
             )
-        with torch.no_grad(), self.params.to_module(self.model, preserve_module_state=False):
-            return self.model.predict(tensordict)
 
     def _gate(self, reward: torch.Tensor) -> torch.Tensor:
         # A multiply, not a ``where``: NaN * 0 stays NaN, so a diverged model is seen (and stops
