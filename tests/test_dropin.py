@@ -49,7 +49,7 @@ def test_from_env_reads_every_size_from_the_specs():
 def test_from_env_names_a_missing_key_and_the_keys_there():
     with pytest.raises(KeyError, match=r"force_key='force'.*'touch'"):
         IntrinsicRewards.from_env(ToyHandEnv(), "r+rf", force_key="force")
-    with pytest.raises(ValueError, match=r"n_sites, n_channels.*\(63,\)"):
+    with pytest.raises(ValueError, match=r"n_sites >= 1, n_channels >= 1.*\(63,\)"):
         IntrinsicRewards.from_env(ToyHandEnv(), "r+rf", force_key=keys.OBSERVATION)
 
 
@@ -207,3 +207,44 @@ def test_a_model_reward_in_another_process_is_an_error():
     child.join(timeout=60)
     assert "its model trains in process" in message and "sampling_transform" in message
     rewards.transform(batch)  # in its own process it still runs
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"lam_prime": (float("nan"), 2.0)}, r"gentleness.lam_prime\[0\]=nan must be a finite"),
+        ({"reward_delay": -1}, "gentleness.reward_delay=-1 must be >= 0"),
+        ({"model_batch_size": 0}, r"gentleness.model_batch_size=0 must be in \[1, 65536\]"),
+        ({"lam": (0.0, 2.0)}, r"gentleness.lam=\(0.0, 2.0\) must be \[lambda_1 > 0"),
+    ],
+)
+def test_the_drop_in_checks_its_settings_as_gentlerl_train_does(settings, message):
+    """The findings: these settings were accepted by IntrinsicRewards (the CLI refused them)."""
+    with pytest.raises(ValueError, match=f"invalid GentlenessConfig: {message}"):
+        small_rewards(**settings)
+
+
+def test_sum_rewards_refuses_a_non_finite_weight():
+    with pytest.raises(
+        ValueError, match=r"SumRewards: weights must be finite numbers, got \[nan\]"
+    ):
+        SumRewards(["reward"], weights=[float("nan")])
+
+
+@pytest.mark.parametrize(
+    ("shape", "dtype", "message"),
+    [
+        ((0, 3), torch.float32, r"must be \[n_sites >= 1, n_channels >= 1\], got \(0, 3\)"),
+        ((5, 3, 2), torch.float32, r"must be \[n_sites >= 1, n_channels >= 1\], got \(5, 3, 2\)"),
+        ((5, 3), torch.bool, "must be a floating-point force, got torch.bool"),
+    ],
+)
+def test_from_env_refuses_a_force_that_is_no_force(shape, dtype, message):
+    from torchrl.data import Unbounded
+
+    env = ToyHandEnv()
+    spec = env.observation_spec.clone()
+    spec["force"] = Unbounded(shape=shape, dtype=dtype)
+    env.observation_spec = spec
+    with pytest.raises(ValueError, match=f"IntrinsicRewards.from_env: 'force' {message}"):
+        IntrinsicRewards.from_env(env, "r+rf+rsp", force_key="force")

@@ -21,7 +21,7 @@ from gentlerl import keys
 from gentlerl.agent.chain import RewardChain
 from gentlerl.agent.specs import env_sizes
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
-from gentlerl.config import GentlenessConfig
+from gentlerl.config import GentlenessConfig, check_group
 from gentlerl.data import WINDOW, make_model_buffer, nstep_return
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.transforms import (
@@ -72,6 +72,7 @@ class IntrinsicRewards:
         obs_key: str = keys.OBSERVATION,
         device: torch.device | str | None = None,
     ) -> None:
+        check_group(settings, "gentleness")  # what `gentlerl train` checks of the same fields
         self.reward_keys = reward_keys(variant)
         self.settings = settings
         self.obs_key, self.force_key = obs_key, force_key

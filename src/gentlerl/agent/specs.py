@@ -48,9 +48,14 @@ def env_sizes(
                 f"spec, which has {present}"
             )
     force_shape = spec[force_key].shape[len(env.batch_size) :]
-    if len(force_shape) < 2:
+    if len(force_shape) != 2 or 0 in force_shape:
         raise ValueError(
-            f"IntrinsicRewards.from_env: {force_key!r} must be [..., n_sites, n_channels], "
+            f"IntrinsicRewards.from_env: {force_key!r} must be [n_sites >= 1, n_channels >= 1], "
             f"got {tuple(force_shape)} (UnsqueezeTransform(-1) adds a channel dim)"
+        )
+    dtype = spec[force_key].dtype
+    if not dtype.is_floating_point:
+        raise ValueError(
+            f"IntrinsicRewards.from_env: {force_key!r} must be a floating-point force, got {dtype}"
         )
     return spec[obs_key].shape[-1], env.action_spec.shape[-1], env_feature_shapes(env, obs_key)

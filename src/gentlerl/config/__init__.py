@@ -25,7 +25,7 @@ from gentlerl.config.groups import (
     ReplayConfig,
 )
 from gentlerl.config.presets import SCALES
-from gentlerl.config.rules import GROUP_RULES
+from gentlerl.config.rules import GROUP_RULES, check_group
 
 __all__ = [
     "AUTO_NUM_ENVS",
@@ -35,6 +35,7 @@ __all__ = [
     "LOGGERS",
     "SCALES",
     "WANDB_MODES",
+    "check_group",
     "CollectorConfig",
     "EnvConfig",
     "GentlenessConfig",

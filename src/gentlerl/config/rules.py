@@ -7,6 +7,7 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+from gentlerl.config.fields import declared_problems, type_problems
 from gentlerl.config.groups import (
     OVERLAPS,
     CollectorConfig,
@@ -110,3 +111,15 @@ GROUP_RULES: dict[str, Callable[[Any], list[str]]] = {
     "network": network_problems,
     "gentleness": gentleness_problems,
 }
+
+
+def check_group(config: Any, name: str) -> None:
+    """The checks ``gentlerl train`` makes of the group ``name`` (types, declared ranges, its
+    rule), for a group built in Python (``IntrinsicRewards(settings=GentlenessConfig(...))``):
+    one ``ValueError`` listing every problem, fields named as the CLI names them."""
+    prefix = f"{name}."
+    problems = type_problems(config, prefix)
+    if not problems:  # the range checks compare numbers
+        problems = declared_problems(config, prefix) + GROUP_RULES.get(name, lambda _: [])(config)
+    if problems:
+        raise ValueError(f"invalid {type(config).__name__}: " + "; ".join(problems))

@@ -12,6 +12,7 @@ the summed reward, by linearity of the expected return).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from tensordict import TensorDictBase
@@ -72,6 +73,8 @@ class SumRewards(Transform):
             raise ValueError(f"SumRewards: task_key {task_key!r} is also one of {in_keys}")
         super().__init__(in_keys=in_keys, out_keys=[out_key])
         self.weights = [float(w) for w in weights]
+        if not all(math.isfinite(w) for w in self.weights):
+            raise ValueError(f"SumRewards: weights must be finite numbers, got {list(weights)}")
         self.task_key = task_key
         self._order_checked = False
 
