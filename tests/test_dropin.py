@@ -248,3 +248,27 @@ def test_from_env_refuses_a_force_that_is_no_force(shape, dtype, message):
     env.observation_spec = spec
     with pytest.raises(ValueError, match=f"IntrinsicRewards.from_env: 'force' {message}"):
         IntrinsicRewards.from_env(env, "r+rf+rsp", force_key="force")
+
+
+def test_update_before_extend_and_empty_batches_are_named():
+    rewards = small_rewards()
+    with pytest.raises(RuntimeError, match=r"update\(\) before any extend\(\): the models have"):
+        rewards.update()
+    batch = ToyHandEnv().rollout(3)
+    with pytest.raises(ValueError, match=r"the reward transforms got an empty batch \(0,\)"):
+        rewards.transform(batch[:0])
+    with pytest.raises(ValueError, match=r"IntrinsicRewards.extend: the batch is empty \(0,\)"):
+        rewards.extend(rewards.transform(batch)[:0])
+
+
+def test_from_env_refuses_an_image_observation_and_a_meta_device():
+    from torchrl.data import Unbounded
+
+    env = ToyHandEnv()
+    spec = env.observation_spec.clone()
+    spec["pixels"] = Unbounded(shape=(3, 8, 8))
+    env.observation_spec = spec
+    with pytest.raises(ValueError, match=r"'pixels' must be a flat float vector \[obs_dim\], got"):
+        IntrinsicRewards.from_env(env, "r+rf+rsp", obs_key="pixels")
+    with pytest.raises(ValueError, match="device must be cpu or cuda, got meta"):
+        IntrinsicRewards.from_env(ToyHandEnv(), "r+rf+rsp", device="meta")

@@ -51,6 +51,8 @@ class RewardChain(Compose):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         self.check_keys(tensordict)
+        if tensordict.batch_size.numel() == 0:
+            raise ValueError(f"the reward transforms got an empty batch {tuple(tensordict.shape)}")
         home, there = tensordict.device, self.models_device
         if there is None or home is None or home == there:
             return super().forward(tensordict)

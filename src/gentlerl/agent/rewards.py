@@ -22,7 +22,7 @@ from gentlerl.agent.chain import RewardChain
 from gentlerl.agent.specs import env_sizes
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.config import GentlenessConfig, check_group
-from gentlerl.data import WINDOW, make_model_buffer, nstep_return
+from gentlerl.data import make_model_buffer, rescore_windows
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.transforms import (
     FreshRewards,
@@ -77,6 +77,8 @@ class IntrinsicRewards:
         self.settings = settings
         self.obs_key, self.force_key = obs_key, force_key
         self.device = torch.device("cpu" if device is None else device)
+        if self.device.type not in ("cpu", "cuda"):
+            raise ValueError(f"IntrinsicRewards: device must be cpu or cuda, got {self.device}")
         #: Model updates so far (:meth:`update` counts them; the schedule reads it).
         self.num_updates = 0
         self._sampling: list[FreshRewards] = []
@@ -202,33 +204,15 @@ class IntrinsicRewards:
         moment: a bonus for a contact the model has learned since never fades. Here each
         transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
         :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
-        (:func:`~gentlerl.data.nstep_return`); ``("next", "penalty_surprise")`` is replaced in
+        (:func:`~gentlerl.data.rescore_windows`); ``("next", "penalty_surprise")`` is replaced in
         place. Returns ``penalty_surprise_per_contact_step``: the mean recomputed :math:`r^{s_p}`
         over the window steps with a penalty (absent when the batch has none), the number that
         falls when the model learns what it is paid to be surprised by.
         """
-        metrics: dict[str, float] = {}
         if not self.recomputed:
-            return metrics
+            return {}
         self._refreshed = True
-        window = batch.get(WINDOW, None)
-        if window is None:
-            raise KeyError(
-                "recompute_surprise needs each transition's window of steps ('window'), written "
-                "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
-            )
-        flat, steps = window.reshape(-1).to(self.device), batch.get("steps_to_next_obs")
-        for t in self.recomputed:
-            key = t.out_keys[0]
-            per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
-            per_step = per_step.to(steps.device)  # the models' device -> the batch's
-            batch.set(("next", key), nstep_return(per_step, steps, gamma))
-            contact = window.get(("next", t.penalty_key)) < 0
-            counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)
-            counted = contact & counted.unsqueeze(-1)
-            if counted.any():  # a batch without contact says nothing about the bonus's size
-                metrics[f"{key}_per_contact_step"] = per_step[counted].mean().item()
-        return metrics
+        return rescore_windows(self.recomputed, batch, gamma, self.device)
 
     @property
     def intrinsic_on(self) -> bool:
@@ -237,6 +221,8 @@ class IntrinsicRewards:
 
     def extend(self, batch: TensorDictBase) -> None:
         """Keep a collected (transformed) batch's 1-step transitions for the models."""
+        if batch.batch_size.numel() == 0:
+            raise ValueError(f"IntrinsicRewards.extend: the batch is empty {tuple(batch.shape)}")
         if self.buffer is not None:
             touch_grid = (keys.TOUCH_GRID, ("next", keys.TOUCH_GRID))
             self.buffer.extend(batch.exclude(*touch_grid, "collector").reshape(-1))
@@ -247,6 +233,11 @@ class IntrinsicRewards:
         ``num_updates``: the count including this update (default: one more than the last);
         ``reward_delay`` and the target periods are counted in these updates.
         """
+        if self.buffer is not None and len(self.buffer) == 0:
+            raise RuntimeError(
+                "IntrinsicRewards.update() before any extend(): the models have no transition to "
+                "learn from (extend() each collected, transformed batch first)"
+            )
         self._check_fresh()
         metrics = {}
         b = self.settings.model_batch_size

@@ -47,6 +47,13 @@ def env_sizes(
                 f"IntrinsicRewards.from_env: {name}={key!r} is not in the env's observation "
                 f"spec, which has {present}"
             )
+    obs = spec[obs_key]
+    if len(obs.shape) - len(env.batch_size) != 1 or not obs.dtype.is_floating_point:
+        raise ValueError(
+            f"IntrinsicRewards.from_env: {obs_key!r} must be a flat float vector [obs_dim], got "
+            f"{tuple(obs.shape[len(env.batch_size) :])} {obs.dtype} (an image or a dict needs an "
+            "encoder or CatTensors first)"
+        )
     force_shape = spec[force_key].shape[len(env.batch_size) :]
     if len(force_shape) != 2 or 0 in force_shape:
         raise ValueError(

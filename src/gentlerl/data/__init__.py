@@ -9,7 +9,7 @@ from gentlerl.data.replay import (
     make_nstep_transform,
     make_replay_buffer,
 )
-from gentlerl.data.windows import WINDOW, nstep_return, nstep_windows
+from gentlerl.data.windows import WINDOW, nstep_return, nstep_windows, rescore_windows
 
 __all__ = [
     "FlatPriorityTree",
@@ -22,5 +22,6 @@ __all__ = [
     "make_replay_buffer",
     "nstep_return",
     "nstep_windows",
+    "rescore_windows",
     "WINDOW",
 ]

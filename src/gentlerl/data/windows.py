@@ -10,6 +10,9 @@ exactly as ``MultiStepTransform`` summed the stored one.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import torch
 from tensordict import TensorDictBase
 
@@ -63,3 +66,34 @@ def nstep_return(
     k = steps_to_next_obs.reshape(*rewards.shape[:-2], 1)
     weights = torch.where(j < k, gamma ** j.to(rewards.dtype), torch.zeros((), dtype=rewards.dtype))
     return (weights.unsqueeze(-1) * rewards).sum(-2)
+
+
+def rescore_windows(
+    transforms: Sequence[Any], batch: TensorDictBase, gamma: float, device: torch.device
+) -> dict[str, float]:
+    r"""Score each sampled transition's window again with ``transforms`` (their ``compute``,
+    models on ``device``) and replace ``("next", out_key)`` by the :func:`nstep_return` of it.
+
+    Returns ``<out_key>_per_contact_step``: the mean rescored reward over the counted window
+    steps with a penalty (``("next", penalty_key)`` < 0; absent when the batch has none), the
+    number that falls when a model learns what it pays surprise for.
+    """
+    window = batch.get(WINDOW, None)
+    if window is None:
+        raise KeyError(
+            "recompute_surprise needs each transition's window of steps ('window'), written "
+            "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
+        )
+    flat, steps = window.reshape(-1).to(device), batch.get("steps_to_next_obs")
+    metrics: dict[str, float] = {}
+    for t in transforms:
+        key = t.out_keys[0]
+        per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
+        per_step = per_step.to(steps.device)  # the models' device -> the batch's
+        batch.set(("next", key), nstep_return(per_step, steps, gamma))
+        contact = window.get(("next", t.penalty_key)) < 0
+        counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)
+        counted = contact & counted.unsqueeze(-1)
+        if counted.any():  # a batch without contact says nothing about the bonus's size
+            metrics[f"{key}_per_contact_step"] = per_step[counted].mean().item()
+    return metrics
