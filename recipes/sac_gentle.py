@@ -33,10 +33,10 @@ from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss, SoftUpdate
 from tqdm import tqdm
 
-from gentlerl.agent import IntrinsicRewards
+from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.apps.evaluate import summarize
-from gentlerl.config import GentlenessConfig
-from gentlerl.envs import make_env
+from gentlerl.config import GentlenessConfig, Range
+from gentlerl.envs import TASKS, make_env
 from gentlerl.training.builders import make_eval_env
 from gentlerl.training.evaluation import evaluate
 from gentlerl.transforms import SumRewards
@@ -71,6 +71,37 @@ class SACConfig:
     eval_episodes: int = 5
     final_eval_episodes: int = 20
     num_threads: int = 1  # torch threads: one run per core, as gentlerl's runs
+
+
+#: Each number's range, written as ``gentlerl train`` writes its own (``gentlerl.config.Range``).
+BOUNDS = {
+    "seed": "[0, 4294967295]", "total_frames": "[1, 10000000000]",
+    "init_random_frames": ">= 0", "frames_per_batch": "[1, 100000]", "utd_ratio": "(0, 64]",
+    "batch_size": "[1, 65536]", "buffer_size": "[1, 10000000]", "lr": "(0, 1]",
+    "gamma": "(0, 1]", "polyak": "[0, 1)", "alpha_init": "(0, 1000]", "reward_delay": ">= 0",
+    "eval_every_frames": ">= 1", "eval_episodes": "[1, 256]", "final_eval_episodes": "[1, 10000]",
+    "num_threads": "[1, 256]",
+}  # fmt: skip
+
+
+def check(cfg: SACConfig) -> list[str]:
+    """Every problem of ``cfg``, one line each (empty: it can run)."""
+    problems = [
+        f"{name}={getattr(cfg, name)!r} must be {Range.parse(bound).describe()}"
+        for name, bound in BOUNDS.items()
+        if getattr(cfg, name) not in Range.parse(bound)  # NaN is in no range
+    ]
+    if cfg.task not in TASKS:
+        problems.append(f"task={cfg.task!r} is not one of {list(TASKS)}")
+    if cfg.variant not in VARIANTS:
+        problems.append(f"variant={cfg.variant!r} is not one of {sorted(VARIANTS)}")
+    if not 1 <= len(cfg.hidden) <= 8 or not all(1 <= h <= 4096 for h in cfg.hidden):
+        problems.append(f"hidden={cfg.hidden} must list 1 to 8 layer sizes in [1, 4096]")
+    if len(cfg.lam_prime) != 2 or not (cfg.lam_prime[0] > 0 and cfg.lam_prime[1] >= 0):
+        problems.append(f"lam_prime={cfg.lam_prime} must be [lambda_1 > 0, lambda_2 >= 0]")
+    if cfg.batch_size > cfg.buffer_size:
+        problems.append(f"batch_size={cfg.batch_size} must be <= buffer_size={cfg.buffer_size}")
+    return problems
 
 
 def make_sac_agent(env: TransformedEnv, hidden: list[int]) -> nn.ModuleList:
@@ -203,12 +234,17 @@ def parse(argv: list[str]) -> SACConfig:
     """``key=value`` overrides of :class:`SACConfig`; a bad one is refused in one line."""
     if any(a in ("-h", "--help") for a in argv):
         fields = OmegaConf.to_yaml(OmegaConf.structured(SACConfig))
-        sys.exit(f"usage: python recipes/sac_gentle.py [key=value ...]\n{fields}")
+        print(f"usage: python recipes/sac_gentle.py [key=value ...]\n{fields}")
+        sys.exit(0)
     try:
         cfg = OmegaConf.merge(OmegaConf.structured(SACConfig), OmegaConf.from_dotlist(argv))
     except Exception as error:  # omegaconf's errors span several lines
         sys.exit(f"sac_gentle: {str(error).splitlines()[0]}")
-    return SACConfig(**OmegaConf.to_container(cfg))
+    cfg = SACConfig(**OmegaConf.to_container(cfg))
+    problems = check(cfg)  # before any folder is made
+    if problems:
+        sys.exit(f"sac_gentle: {'; '.join(problems)}")
+    return cfg
 
 
 if __name__ == "__main__":

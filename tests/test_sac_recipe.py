@@ -96,3 +96,29 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
         ["bash", str(RECIPES / "sac_grid.sh"), "--workers", "0"], capture_output=True, text=True
     )
     assert bad.returncode == 2 and "--workers must be a positive integer, got '0'" in bad.stderr
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("total_frames=-1", r"total_frames=-1 must be in \[1, 10000000000\]"),
+        ("utd_ratio=1e9", r"utd_ratio=1000000000.0 must be in \(0, 64\]"),
+        ("utd_ratio=nan", r"utd_ratio=nan must be in \(0, 64\]"),
+        ("task=../../../x", r"task='../../../x' is not one of"),
+        ("batch_size=0", r"batch_size=0 must be in \[1, 65536\]"),
+        ("hidden=[0]", r"hidden=\[0\] must list 1 to 8 layer sizes"),
+        ("lr=nan", r"lr=nan must be in \(0, 1\]"),
+        ("gamma=2", r"gamma=2.0 must be in \(0, 1\]"),
+        ("reward_delay=-1", "reward_delay=-1 must be >= 0"),
+        ("num_threads=0", r"num_threads=0 must be in \[1, 256\]"),
+    ],
+)
+def test_the_sac_recipe_refuses_bad_values_before_any_folder(
+    tmp_path, monkeypatch, override, message
+):
+    """The findings: these ran forever, made a folder outside runs/ or ended in a traceback."""
+    monkeypatch.chdir(tmp_path)
+    sac = load("sac_gentle")
+    with pytest.raises(SystemExit, match=f"sac_gentle: {message}"):
+        sac.parse([override])
+    assert list(tmp_path.iterdir()) == []
