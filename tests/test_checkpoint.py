@@ -259,3 +259,41 @@ def test_a_policy_saved_with_the_flat_config_of_older_versions_loads(tmp_path):
     save_checkpoint(tmp_path / "best_policy.pt", state)
     with pytest.raises(ValueError, match="unknown config field.*'no_such_field'"):
         load_policy(tmp_path / "best_policy.pt")
+
+
+def _tamper_nan_reward(state):
+    state["rb"]["_storage"]["data"]["next", "reward"][3] = float("nan")
+
+
+def _tamper_stride_zero(state):
+    data = state["rb"]["_storage"]["data"]
+    data["action"] = data["action"][:1].expand_as(data["action"])
+
+
+def _tamper_nan_priority(state):
+    state["rb"]["_sampler"]["_sum_tree"].values[0] = float("nan")
+
+
+def _tamper_negative_counter(state):
+    state["counters"]["frames"] = -5
+
+
+@pytest.mark.parametrize(
+    ("tamper", "message"),
+    [
+        (_tamper_nan_reward, r"replay entry \('next', 'reward'\) holds a NaN or infinite value"),
+        (_tamper_stride_zero, r"replay entry action is not dense \(stride \(0, 1\)\)"),
+        (_tamper_nan_priority, r"replay priorities \(_sum_tree\) hold a negative, NaN or inf"),
+        (_tamper_negative_counter, r"counters \{'frames': -5\} must be finite and >= 0"),
+    ],
+)
+def test_a_crafted_or_damaged_replay_is_refused_on_resume(tmp_path, tamper, message):
+    """The findings: a NaN reward in the replay ended in 'index -9223372036854775808 is out of
+    bounds'; stride-0 rows, NaN priorities and negative counters gave obscure errors."""
+    Trainer(tiny_config(tmp_path, total_frames=300), toy_env).run()
+    state = load_checkpoint(tmp_path / "checkpoint.pt")
+    tamper(state)
+    resumed = Trainer(tiny_config(tmp_path, total_frames=300, resume=True), toy_env)
+    with pytest.raises(ValueError, match=message) as err:
+        resumed.load_state_dict(state)
+    assert "\n" not in str(err.value) and "checkpoint.pt" in str(err.value)

@@ -168,6 +168,19 @@ def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) 
             )
 
 
+def checked_counters(counters: Mapping[str, Any], checkpoint: Path) -> dict[str, Any]:
+    """A checkpoint's ``frames`` / ``updates`` / ``update_credit``: finite and >= 0, else a
+    one-line ``ValueError`` naming the file."""
+    bad = {
+        k: v
+        for k, v in counters.items()
+        if not isinstance(v, int | float) or not math.isfinite(v) or v < 0
+    }
+    if bad:
+        raise ValueError(f"{checkpoint}: counters {bad} must be finite and >= 0; it cannot resume")
+    return dict(counters)
+
+
 def non_finite_force(err: Exception, where: str, checkpoint: Path) -> NonFiniteError:
     """The stop for a NaN / inf force reading (``err``, from the reward transforms) at ``where``."""
     return NonFiniteError(

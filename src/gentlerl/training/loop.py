@@ -288,13 +288,13 @@ class Trainer:
         self.learner.restore(TrainingState(**state["learner"]))
         self.rewards.load_state_dict(state["intrinsic"])
         if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
-            load_replay_buffer_state(self.rb, state["rb"])
+            load_replay_buffer_state(self.rb, state["rb"], self.layout.checkpoint)
             self.writer.load_state_dict(state["nstep"])
         if self.rewards.buffer is not None and state["model_rb"] is not None:
-            load_replay_buffer_state(self.rewards.buffer, state["model_rb"])
+            load_replay_buffer_state(self.rewards.buffer, state["model_rb"], self.layout.checkpoint)
         if self.beta_schedule is not None:
             self.beta_schedule.load_state_dict(state["beta_schedule"])
-        self.counters = dict(state["counters"])
+        self.counters = guards.checked_counters(state["counters"], self.layout.checkpoint)
         self.wall_s = float(state.get("wall_s", 0.0))  # absent in checkpoints before it
         self.eval_history = list(state["eval_history"])
         self.best_eval = state["best_eval"]
