@@ -236,7 +236,8 @@ def test_sum_rewards_refuses_a_non_finite_weight():
     [
         ((0, 3), torch.float32, r"must be \[n_sites >= 1, n_channels >= 1\], got \(0, 3\)"),
         ((5, 3, 2), torch.float32, r"must be \[n_sites >= 1, n_channels >= 1\], got \(5, 3, 2\)"),
-        ((5, 3), torch.bool, "must be a floating-point force, got torch.bool"),
+        ((5, 3), torch.bool, "must be float32, got torch.bool"),
+        ((5, 3), torch.float64, r"must be float32, got torch.float64 \(torchrl's DoubleToFloat"),
     ],
 )
 def test_from_env_refuses_a_force_that_is_no_force(shape, dtype, message):
@@ -272,3 +273,20 @@ def test_from_env_refuses_an_image_observation_and_a_meta_device():
         IntrinsicRewards.from_env(env, "r+rf+rsp", obs_key="pixels")
     with pytest.raises(ValueError, match="device must be cpu or cuda, got meta"):
         IntrinsicRewards.from_env(ToyHandEnv(), "r+rf+rsp", device="meta")
+
+
+def test_a_deep_copy_of_fresh_rewards_scores_with_the_trained_model():
+    """The finding: a deep copy or pickle of FreshRewards had its own model whose gate never
+    opened; a deep copy now shares the model and gate, an unpickled one refuses to run."""
+    import copy
+    import pickle
+
+    rewards = small_rewards(reward_delay=1)
+    _, reward_sum = summed_env(rewards)
+    fresh = rewards.sampling_transform(reward_sum)
+    copied, unpickled = copy.deepcopy(fresh), pickle.loads(pickle.dumps(fresh))
+    for mine, theirs in zip(copied.rewards, rewards.gated_transforms, strict=True):
+        assert mine.model is theirs.model and mine.active is theirs.active
+    batch = rewards.transform(ToyHandEnv().rollout(5))
+    with pytest.raises(RuntimeError, match="was unpickled: its model is a copy"):
+        unpickled(batch.clone())

@@ -538,3 +538,12 @@ def test_a_deep_copy_shares_the_model_and_the_gate_and_an_unpickled_one_refuses(
     )
     with pytest.raises(RuntimeError, match="PenaltySurprise was unpickled: its model is a copy"):
         pickled(batch.clone())
+
+
+def test_impact_penalty_refuses_forces_whose_penalty_overflows():
+    """The finding: 3e38 N forces (finite) gave NaN rewards and a NaN model loss."""
+    nxt = torch.zeros(5, 3)
+    nxt[:, 0] = 3e38
+    td = TensorDict({"touch": torch.zeros(5, 3), "next": {"touch": nxt}})
+    with pytest.raises(NonFiniteForceError, match=r"forces up to 3e\+38 overflow the penalty"):
+        ImpactPenalty()(td)

@@ -3,6 +3,7 @@ feature groups."""
 
 from __future__ import annotations
 
+import torch
 from torchrl.envs import CatTensors, EnvBase
 
 from gentlerl import keys
@@ -60,9 +61,10 @@ def env_sizes(
             f"IntrinsicRewards.from_env: {force_key!r} must be [n_sites >= 1, n_channels >= 1], "
             f"got {tuple(force_shape)} (UnsqueezeTransform(-1) adds a channel dim)"
         )
-    dtype = spec[force_key].dtype
-    if not dtype.is_floating_point:
-        raise ValueError(
-            f"IntrinsicRewards.from_env: {force_key!r} must be a floating-point force, got {dtype}"
-        )
+    for key in (obs_key, force_key):  # the models are float32
+        if spec[key].dtype != torch.float32:
+            raise ValueError(
+                f"IntrinsicRewards.from_env: {key!r} must be float32, got {spec[key].dtype} "
+                "(torchrl's DoubleToFloat casts an env's float64 entries)"
+            )
     return spec[obs_key].shape[-1], env.action_spec.shape[-1], env_feature_shapes(env, obs_key)

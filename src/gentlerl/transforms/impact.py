@@ -74,6 +74,12 @@ class ImpactPenalty(TransitionTransform):
         _check_force(self.in_keys[0], next_force, "s_t+1")
         m = impact(force, next_force)
         penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
+        if not bool(torch.isfinite(penalty).all()):  # finite forces whose impacts overflow
+            raise NonFiniteForceError(
+                f"ImpactPenalty: {self.in_keys[0]!r} forces up to {next_force.abs().max().item():.3g}"
+                f" overflow the penalty in {penalty.dtype} (a force unit off by orders of magnitude?"
+                " env.force_scale reads another unit)"
+            )
         return {self.out_keys[0]: m, self.out_keys[1]: penalty}
 
 
