@@ -203,15 +203,8 @@ class MultiHeadD4PGLoss(LossModule):
     def network_params(self) -> TensorDict:
         """The four parameter sets the losses read (online and target actor and critic), as one
         tensordict: :meth:`losses` with a stack of them runs several agents at once (``vmap``)."""
-        return TensorDict(
-            {
-                "actor": self.actor_network_params,
-                "value": self.value_network_params,
-                "target_actor": self.target_actor_network_params,
-                "target_value": self.target_value_network_params,
-            },
-            batch_size=[],
-        )
+        names = ("actor", "value", "target_actor", "target_value")
+        return TensorDict({n: getattr(self, f"{n}_network_params") for n in names}, [])
 
     @torch.no_grad()
     def target_distribution(
@@ -256,10 +249,8 @@ class MultiHeadD4PGLoss(LossModule):
         return torch.stack(per_head), cross_entropy.detach().mean(-1)
 
     def loss_value(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
-        """Summed cross-entropy of the K critics; writes ``td_error`` into ``tensordict``.
-
-        Returns ``(loss, {"per_head": [K] losses})``.
-        """
+        """Summed cross-entropy of the K critics, ``{"per_head": [K] losses}``; writes
+        ``td_error`` into ``tensordict``."""
         per_head, priority = self._value_terms(tensordict, self.network_params())
         tensordict.set(self.tensor_keys.priority, priority, inplace=True)
         return per_head.sum(), {"per_head": per_head}
@@ -278,10 +269,8 @@ class MultiHeadD4PGLoss(LossModule):
         return loss, q_per_head.detach().reshape(-1, self.num_heads).mean(0)
 
     def loss_actor(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
-        """Minus the summed expected return of the K heads at ``(s, pi(s))``.
-
-        Returns ``(loss, {"value": [K] mean expected returns})``.
-        """
+        """Minus the summed expected return of the K heads at ``(s, pi(s))``, ``{"value": [K]
+        mean expected returns}``."""
         loss, value = self._actor_terms(tensordict, self.network_params())
         return loss, {"value": value}
 

@@ -26,6 +26,7 @@ from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
 from gentlerl.files import load_yaml
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.config import TrainConfig, group_flat_config
+from gentlerl.transforms.impact import NonFiniteForceError
 
 #: Fields a resumed run may change (declared ``resumable``): how long and how fast it goes on, and
 #: what it logs. The rest shape the saved networks and buffers or the rewards already stored in them.
@@ -181,12 +182,17 @@ def checked_counters(counters: Mapping[str, Any], checkpoint: Path) -> dict[str,
     return dict(counters)
 
 
-def non_finite_force(err: Exception, where: str, checkpoint: Path) -> NonFiniteError:
-    """The stop for a NaN / inf force reading (``err``, from the reward transforms) at ``where``."""
-    return NonFiniteError(
-        f"non-finite force at {where}: training stopped; {checkpoint_note(checkpoint)} ({err}; "
-        "check the env's force sensor)"
-    )
+def scored(transform: Any, batch: Any, frames: int, checkpoint: Path) -> Any:
+    """``transform(batch)`` (the reward transforms on a collected batch that follows the first
+    ``frames``); a NaN / inf force reading stops training as a non-finite reward does."""
+    try:
+        return transform(batch)
+    except NonFiniteForceError as err:
+        where = f"frames {frames + 1}-{frames + batch.numel()}"
+        raise NonFiniteError(
+            f"non-finite force at {where}: training stopped; {checkpoint_note(checkpoint)} "
+            f"({err}; check the env's force sensor)"
+        ) from None
 
 
 def checkpoint_note(checkpoint: Path) -> str:

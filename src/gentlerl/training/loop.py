@@ -51,7 +51,6 @@ from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episo
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state, set_rng_state
-from gentlerl.transforms import NonFiniteForceError
 
 
 class Trainer:
@@ -152,13 +151,9 @@ class Trainer:
 
     def _rewarded(self, batch: TensorDictBase) -> TensorDictBase:
         """The batch with every reward component (checked finite), counted in ``frames``."""
-        frames = self.counters["frames"]
-        try:
-            batch = self.rewards.transform(batch)
-        except NonFiniteForceError as err:  # the loop's stop: named, frames, checkpoint kept
-            where = f"frames {frames + 1}-{frames + batch.numel()}"
-            raise guards.non_finite_force(err, where, self.layout.checkpoint) from None
-        guards.check_rewards(batch, self.rewards.reward_keys, frames, self.layout.checkpoint)
+        frames, checkpoint = self.counters["frames"], self.layout.checkpoint
+        batch = guards.scored(self.rewards.transform, batch, frames, checkpoint)
+        guards.check_rewards(batch, self.rewards.reward_keys, frames, checkpoint)
         self.counters["frames"] += batch.numel()
         return batch
 
