@@ -23,29 +23,21 @@ import platform
 import time
 
 import torch
-from learner_speed import ACT, OBS, Scale, _batch, _time, make_scale
+from learner_speed import ACT, OBS, Scale, _batch, _time, make_loss, make_scale
 from tensordict import TensorDict
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner, compile_step
 from gentlerl.agent.seeds import SeedBatchedLearner
-from gentlerl.models import PenaltyModel, make_actor, make_critic
+from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
 
 MODES = ("eager", "compile", "cudagraphs", "compile+cudagraphs")
 
 
 def _loss(scale: Scale, seed: int, device: str) -> MultiHeadD4PGLoss:
-    net, lrn = scale.cfg.network, scale.cfg.learner
     torch.manual_seed(seed)
-    loss = MultiHeadD4PGLoss(
-        make_actor(OBS, ACT, net.actor_hidden),
-        make_critic(OBS, ACT, len(scale.heads), net.critic_hidden, net.num_atoms),
-        reward_keys=list(scale.heads),
-    )
-    loss.make_value_estimator(gamma=lrn.gamma)
-    loss.set_keys(terminated=keys.NSTEP_TERMINATED)
-    return loss.to(device)
+    return make_loss(scale).to(device)
 
 
 def make_update(scale: Scale, seeds: int, mode: str, device: str):

@@ -115,7 +115,8 @@ def _batch(scale: Scale, device: str) -> TensorDict:
     return td.to(device)
 
 
-def _learner(scale: Scale, device: str, compile: bool = False) -> Learner:
+def make_loss(scale: Scale) -> MultiHeadD4PGLoss:
+    """The D4PG loss of ``scale`` (its actor, critic heads and discount), on the CPU."""
     net, lrn = scale.cfg.network, scale.cfg.learner
     loss = MultiHeadD4PGLoss(
         make_actor(OBS, ACT, net.actor_hidden),
@@ -124,6 +125,11 @@ def _learner(scale: Scale, device: str, compile: bool = False) -> Learner:
     )
     loss.make_value_estimator(gamma=lrn.gamma)
     loss.set_keys(terminated=keys.NSTEP_TERMINATED)
+    return loss
+
+
+def _learner(scale: Scale, device: str, compile: bool = False) -> Learner:
+    lrn, loss = scale.cfg.learner, make_loss(scale)
     # Moved before Learner builds its optimiser, so Adam holds the device's parameters.
     options = {"compile": True} if compile else {}  # as a revision without the option is called
     return Learner(
