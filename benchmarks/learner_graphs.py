@@ -24,10 +24,10 @@ import time
 
 import torch
 from learner_speed import ACT, OBS, Scale, _batch, _time, make_loss, make_scale
-from tensordict import TensorDict
 
 from gentlerl import keys
-from gentlerl.agent.learner import Learner, compile_step
+from gentlerl.agent.learner import Learner
+from gentlerl.agent.model_step import ModelStep
 from gentlerl.agent.seeds import SeedBatchedLearner
 from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
@@ -60,25 +60,15 @@ def make_update(scale: Scale, seeds: int, mode: str, device: str):
 
 
 def make_model_update(scale: Scale, mode: str, device: str):
-    """``update()``: one penalty-ensemble step (NLL, backward, fused Adam) through ``mode``."""
+    """``update()``: one penalty-ensemble step through ``mode`` (gentlerl's ``ModelStep``, with the
+    ``.item()`` read of its loss that the training loop makes)."""
     g = scale.cfg.gentleness
     model = PenaltyModel(OBS, ACT, g.ensemble_size, (g.model_hidden,) * 3)
     loss = EnsembleModelLoss(model, name="penalty").to(device)
-    opt = torch.optim.Adam(
-        loss.parameters(), g.lr_model, fused=True, capturable="cudagraphs" in mode
-    )
+    step = ModelStep(loss, g.lr_model, compile="compile" in mode, cudagraphs="cudagraphs" in mode)
     batch = _batch(scale, device)[: g.model_batch_size]
     batch = batch.expand(g.ensemble_size, *batch.shape).clone()
     batch["next", keys.PENALTY] = torch.randn(*batch.shape, 1, device=device)
-
-    def step(td):
-        opt.zero_grad(set_to_none=True)
-        nll = loss(td)["loss_penalty"]
-        nll.backward()
-        opt.step()
-        return TensorDict({"loss_penalty": nll.detach()})  # CudaGraphModule returns tensordicts
-
-    step = compile_step(step, compile="compile" in mode, cudagraphs="cudagraphs" in mode)
     return lambda: step(batch)
 
 

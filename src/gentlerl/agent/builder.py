@@ -113,7 +113,9 @@ class AgentBuilder:
             feature_shapes=self.feature_shapes,
             seed=self.cfg.seed,
             force_key=self.cfg.env.force,
-            device=self.cfg.learner.device,  # the models learn beside the learner
+            device=self.cfg.learner.device,  # the models learn beside the learner, launched
+            compile=self.cfg.learner.compile,  # as its update is
+            cudagraphs=self.cfg.learner.cudagraphs,
         )
 
     def make_learner(self) -> Learner:

@@ -19,6 +19,7 @@ from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
 from gentlerl.agent.chain import RewardChain
+from gentlerl.agent.model_step import ModelStep
 from gentlerl.agent.specs import env_sizes
 from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.config import GentlenessConfig, check_group
@@ -51,7 +52,8 @@ class IntrinsicRewards:
     ``[..., n_sites, n_channels]`` (the hand's ``touch``, ``[5, 3]``); ``feature_shapes`` names the
     entries the dynamics model predicts (used by the variants with dynamics surprise only).
     ``transform.check_keys`` says which of them a tensordict lacks. :meth:`from_env` reads every
-    size from an env's specs; ``device`` is where the models and their buffer live.
+    size from an env's specs; ``device`` is where the models and their buffer live; ``compile``
+    and ``cudagraphs`` launch each model's step as the learner's is (:class:`ModelStep`).
 
     With ``settings.recompute_surprise`` (the default), penalty surprise must be scored again
     when sampled: gentlerl's loop calls :meth:`refresh`; any other pipeline appends
@@ -71,12 +73,15 @@ class IntrinsicRewards:
         force_key: str = keys.TOUCH,
         obs_key: str = keys.OBSERVATION,
         device: torch.device | str | None = None,
+        compile: bool = False,
+        cudagraphs: bool = False,
     ) -> None:
         check_group(settings, "gentleness")  # what `gentlerl train` checks of the same fields
         self.reward_keys = reward_keys(variant)
         self.settings = settings
         self.obs_key, self.force_key = obs_key, force_key
         self.device = torch.device("cpu" if device is None else device)
+        self._launch = {"compile": compile, "cudagraphs": cudagraphs}  # each model's step
         if self.device.type not in ("cpu", "cuda"):
             raise ValueError(f"IntrinsicRewards: device must be cpu or cuda, got {self.device}")
         #: Model updates so far (:meth:`update` counts them; the schedule reads it).
@@ -108,11 +113,11 @@ class IntrinsicRewards:
         self.transform = RewardChain(
             *transforms, obs_key=ing.obs_key, force_key=force_key, device=self.device
         )
-        self.optimizers = {
-            # fused: one kernel per step instead of ~10 per parameter tensor
-            name: torch.optim.Adam(loss.parameters(), lr=settings.lr_model, fused=True)
+        self._steps = {
+            name: ModelStep(loss, settings.lr_model, **self._launch)
             for name, loss in self.losses.items()
         }
+        self.optimizers = {name: step.optimizer for name, step in self._steps.items()}
         self.buffer: ReplayBuffer | None = (
             make_model_buffer(settings.model_buffer_size, device=self.device)
             if self.losses
@@ -247,12 +252,7 @@ class IntrinsicRewards:
                 batch = self.buffer.sample(e * b).reshape(e, b)  # a bootstrap batch per member
             else:
                 batch = self.buffer.sample(b)
-            out = loss(batch)
-            total = sum(v for k, v in out.items() if k.startswith("loss_"))
-            self.optimizers[name].zero_grad()
-            total.backward()
-            self.optimizers[name].step()
-            metrics[f"model_{name}"] = total.item()
+            metrics[f"model_{name}"] = self._steps[name](batch)
         self.step(num_updates)
         return metrics
 
@@ -284,7 +284,7 @@ class IntrinsicRewards:
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         for name, loss in self.losses.items():
             loss.load_state_dict(state["losses"][name])
-            self.optimizers[name].load_state_dict(state["optimizers"][name])
+            self._steps[name].load_optimizer_state(state["optimizers"][name])
         for t in self.gated_transforms:
             t.active.fill_(bool(state["active"]))
         for name, counter in state["target_counters"].items():
