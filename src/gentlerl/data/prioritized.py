@@ -5,8 +5,9 @@ torch 2.13.0 CPU wheel (undefined symbol), and TorchRL then refuses to build a
 ``PrioritizedSampler``. :class:`TorchPrioritizedSampler` keeps *all* of TorchRL's sampler logic
 (alpha/beta, importance weights, ``update_priority``, state dicts, schedulers) and swaps only the two
 trees for :class:`FlatPriorityTree`: a flat tensor whose range sums/minima are vectorised
-reductions and whose prefix-sum search is ``cumsum`` + ``searchsorted``. Each sample costs
-O(capacity) in C-speed torch ops (about 1 ms for 1M entries), no python loop.
+reductions and whose prefix-sum search is ``cumsum`` + ``searchsorted`` over the entries written
+so far. Each sample costs O(entries written) in C-speed torch ops (about 1 ms for 1M), no python
+loop: a paper-scale buffer (1M slots) holding its first 25k transitions scans 25k.
 
 No torchrl wheel on the package registry loads against that torch build (each 0.12.0–0.14.1
 wheel misses torch C++ symbols: 0.14.x was built against torch 2.14, 0.12–0.13 against older
@@ -38,8 +39,20 @@ class FlatPriorityTree:
         if reduce not in ("sum", "min"):
             raise ValueError(f"reduce must be 'sum' or 'min', got {reduce!r}")
         self.reduce = reduce
-        neutral = 0.0 if reduce == "sum" else float("inf")
-        self.values = torch.full((capacity,), neutral, dtype=dtype)
+        self.neutral = 0.0 if reduce == "sum" else float("inf")
+        self.values = torch.full((capacity,), self.neutral, dtype=dtype)
+
+    @property
+    def values(self) -> torch.Tensor:
+        """The ``[capacity]`` entries (the neutral value where none was written)."""
+        return self._values
+
+    @values.setter
+    def values(self, values: torch.Tensor) -> None:
+        self._values = values
+        written = (values != self.neutral).nonzero()
+        #: One past the highest entry written: the prefix-sum search reads no further.
+        self.extent = int(written[-1]) + 1 if len(written) else 0
 
     @staticmethod
     def _index(index: int | np.ndarray | torch.Tensor) -> torch.Tensor:
@@ -51,7 +64,10 @@ class FlatPriorityTree:
     def __setitem__(
         self, index: int | np.ndarray | torch.Tensor, value: float | np.ndarray | torch.Tensor
     ) -> None:
-        self.values[self._index(index)] = torch.as_tensor(value, dtype=self.values.dtype)
+        index = self._index(index)
+        self.values[index] = torch.as_tensor(value, dtype=self.values.dtype)
+        if index.numel():
+            self.extent = max(self.extent, int(index.max()) + 1)
 
     def query(self, left: int, right: int) -> float:
         """Sum (or min) of the entries in ``[left, right)``."""
@@ -59,8 +75,9 @@ class FlatPriorityTree:
         return float(window.sum() if self.reduce == "sum" else window.min())
 
     def scan_lower_bound(self, mass: np.ndarray | torch.Tensor) -> torch.Tensor:
-        """Smallest index whose inclusive prefix sum exceeds each ``mass``."""
-        cumulative = self.values.cumsum(0)
+        """Smallest index whose inclusive prefix sum exceeds each ``mass`` (``extent`` where none
+        does among the entries written; the sampler clamps it into the storage)."""
+        cumulative = self.values[: self.extent].cumsum(0)
         mass = torch.as_tensor(mass, dtype=cumulative.dtype)
         return torch.searchsorted(cumulative, mass, right=True)
 
