@@ -177,3 +177,28 @@ def test_the_gpu_learner_rate_stands_in_the_benchmark_results():
     assert match, "the README's GPU learner sentence is gone"
     results = (README.parent / "benchmarks" / "RESULTS.md").read_text()
     assert f"**{match.group(1)}" in results or f"{match.group(1)}–" in results
+
+
+def test_the_first_screen_states_the_tasks_thresholds_of_the_code():
+    """The touch task succeeds above force_threshold N; the fragile block breaks at an impact
+    above break_impact N (the README once said 'at most 5 N' and 'above 5 N')."""
+    import inspect
+
+    from gentlerl.envs.hand import Fragile, Touch
+
+    touch = inspect.signature(Touch.__init__).parameters["force_threshold"].default
+    fragile = inspect.signature(Fragile.__init__).parameters["break_impact"].default
+    text = " ".join(README.read_text().split())
+    assert f"succeeds at a press on the block above {touch:g} N" in text
+    assert f"breaks at an impact above {fragile:g} N" in text
+
+
+def test_the_sac_recipe_diff_the_readme_states_is_the_recipes():
+    """The README and docs/SAC.md count the recipe's marked lines and gentlerl imports."""
+    code = (README.parent / "recipes" / "sac_gentle.py").read_text().splitlines()
+    marked = sum(1 for line in code if "  # gentlerl" in line)  # inline comments only
+    imports = sum(1 for line in code if line.startswith(("from gentlerl", "import gentlerl")))
+    stated = f"{marked} lines marked `# gentlerl`, {imports} gentlerl imports"
+    assert stated in " ".join(README.read_text().split())
+    sac = " ".join((README.parent / "docs" / "SAC.md").read_text().split())
+    assert f"{marked} lines, with {imports} gentlerl imports" in sac
