@@ -63,3 +63,19 @@ def test_help_and_refusals_answer_within_the_budget(case, tmp_path):
         if best <= BUDGET_S:
             break
     assert best <= BUDGET_S, f"gentlerl {' '.join(argv)} took {best:.2f} s (budget {BUDGET_S} s)"
+
+
+def test_import_gentlerl_changes_nothing_in_the_process():
+    """No import side effects: ``import gentlerl`` leaves ``sys.modules`` (a missing pandas is
+    not recorded) and the OpenGL choice alone; ``gentlerl.envs`` chooses it before dm_control."""
+    code = (
+        "import os, sys; env = dict(os.environ); mods = set(sys.modules); import gentlerl; "
+        "print(sorted(set(sys.modules) - mods), os.environ == env, sys.modules.get('pandas', 1)); "
+        "import gentlerl.envs; print(os.environ.get('MUJOCO_GL'))"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    ).stdout.splitlines()
+    assert out[0] == "['gentlerl'] True 1"
+    assert out[1] in ("disable", "osmesa")  # headless: no GLFW

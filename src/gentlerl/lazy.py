@@ -7,6 +7,7 @@ package must not import torch, TorchRL or MuJoCo (seconds) before a command need
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -32,3 +33,17 @@ def lazy_exports(
         return sorted({*vars(sys.modules[package]), *owner})
 
     return __getattr__, __dir__, sorted(owner)
+
+
+def record_missing_pandas() -> None:
+    """Make tensordict's per-call probe for pandas a dictionary look-up in a training process.
+
+    ``TensorDict.from_any``, which ``TensorDictModule`` runs on every output, calls
+    ``importlib.util.find_spec("pandas")`` each time; without pandas installed that searches
+    ``sys.path`` on every call (~70 us, 6 % of a default training run, benchmarks/RESULTS.md).
+    ``sys.modules["pandas"] = None`` is Python's record of a module that cannot be imported.
+    Done by a run's process set-up, not at ``import gentlerl`` (a notebook may install pandas
+    later); nothing changes where pandas is installed.
+    """
+    if "pandas" not in sys.modules and importlib.util.find_spec("pandas") is None:
+        sys.modules["pandas"] = None

@@ -1,11 +1,11 @@
-"""dm_control's OpenGL backend, chosen when gentlerl is imported (optional offscreen rendering;
+"""dm_control's OpenGL backend, chosen when gentlerl.envs is imported (optional offscreen rendering;
 nothing else in gentlerl needs OpenGL). Imports nothing of gentlerl.
 
 dm_control picks its OpenGL backend from ``MUJOCO_GL`` when it is first imported, and a backend
 that cannot load (e.g. ``MUJOCO_GL=osmesa`` without libOSMesa) crashes that import deep inside
 PyOpenGL; left unset on a headless machine, it tries GLFW first, which prints ``GLFWError: ...
-The DISPLAY environment variable is missing``. :func:`configure_gl` runs when gentlerl is
-imported, before dm_control: on a headless machine it picks OSMesa when the library is
+The DISPLAY environment variable is missing``. :func:`configure_gl` runs when gentlerl.envs
+is imported, before dm_control: on a headless machine it picks OSMesa when the library is
 installed; for a command that renders (``gentlerl video``) EGL when OSMesa is absent and libEGL
 loads (dm_control opens an EGL display when it is imported, 0.5 s per process, so a training run
 does not); and otherwise disables rendering so that everything else works.

@@ -1,11 +1,15 @@
 """The Shadow Hand gentle-touch environments: dm_control tasks and their TorchRL wrapper.
 
-The OpenGL backend is chosen when ``gentlerl`` is imported, before anything imports dm_control
-(:func:`~gentlerl.opengl.configure_gl`); the names below are imported on first use
-(:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
+The OpenGL backend is chosen when this package is first imported, before any of its modules
+imports dm_control (:func:`~gentlerl.opengl.configure_gl`: on a headless machine dm_control's
+default, GLFW, would print a ``GLFWError``); a ``MUJOCO_GL`` the user set is kept. The names below
+are imported on first use (:mod:`gentlerl.lazy`), so that reading the task names imports no MuJoCo.
 """
 
 from gentlerl.lazy import lazy_exports
+from gentlerl.opengl import configure_gl
+
+configure_gl()
 
 __getattr__, __dir__, __all__ = lazy_exports(
     __name__,

@@ -1,5 +1,5 @@
 """Offscreen frames of a hand env's physics; the OpenGL backend is chosen by
-:func:`gentlerl.opengl.configure_gl` when gentlerl is imported."""
+:func:`gentlerl.opengl.configure_gl` when :mod:`gentlerl.envs` is imported."""
 
 from __future__ import annotations
 

@@ -26,6 +26,7 @@ from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
 from gentlerl.files import write_atomic
+from gentlerl.lazy import record_missing_pandas
 from gentlerl.training import guards
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.logging import RunLogger, episode_transforms
@@ -71,10 +72,12 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
 
 
 def prepare_process(cfg: TrainConfig) -> None:
-    """This process's side of a run: torch's threads, every global seed, and with
+    """This process's side of a run: torch's threads, a missing pandas recorded
+    (:func:`record_missing_pandas`), every global seed, and with
     ``collector.kind="ray"`` the Ray cluster joined (Ray installed, cluster reachable) before
     anything is written."""
     torch.set_num_threads(cfg.num_threads)
+    record_missing_pandas()
     seed_everything(cfg.seed)
     if cfg.collector.kind == "ray":
         from gentlerl.distributed.cluster import join_cluster
