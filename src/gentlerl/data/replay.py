@@ -1,4 +1,6 @@
-"""Replay for the D4PG learner: TorchRL prioritised replay of n-step transitions.
+"""Replay for the D4PG learner: TorchRL prioritised replay of n-step transitions, written by
+:class:`NStepWriter` (the buffer itself holds ready transitions; :func:`make_nstep_transform` is
+the step that turns a time-contiguous batch into them).
 
 ``MultiStepTransform`` sums every reward component over ``n_steps`` at write time and maps
 ``("next", obs)`` to the observation ``n`` steps ahead (``steps_to_next_obs`` holds the actual n,

@@ -11,9 +11,11 @@ Each transform reads a transition's root entries (``s_t``, ``a_t``) and ``"next"
 
 gentlerl's training loop uses the second form: it applies :attr:`IntrinsicRewards.transform` to each
 collected batch *before* writing it to the n-step replay buffer, because TorchRL's
-``MultiStepTransform`` sums every reward key over the n steps at write time, so the intrinsic
-rewards must already be in the transitions (they are computed with the target model of that
-moment, which the paper refreshes only every 5000 / 1000 model updates anyway).
+``MultiStepTransform`` sums every reward key over the n steps at write time, so the rewards must
+already be in the transitions. With ``recompute_surprise`` (the default) the penalty surprise is
+then scored again when a transition is sampled, from the raw steps of its window, with the
+target model of that update (:func:`gentlerl.data.rescore_windows`); the paper's reading
+(``recompute_surprise=false``, the ``paper`` scale) keeps the value scored at collection.
 
 The model-reading transforms (``DynamicsSurprise``, ``PenaltySurprise``, ``ICMReward``) receive
 their model and the parameters to read it with, like TorchRL's ``RNDTransform``; the wiring
