@@ -70,8 +70,10 @@ class ImpactPenalty(TransitionTransform):
                 f"ImpactPenalty: {self.in_keys[0]!r} must be [..., n_sites, n_channels] at both "
                 f"steps, got {tuple(force.shape)} and {tuple(next_force.shape)}"
             )
-        _check_force(self.in_keys[0], force, "s_t")
-        _check_force(self.in_keys[0], next_force, "s_t+1")
+        if not (force.is_floating_point() and bool((force + next_force).isfinite().all())):
+            # one reduction on the hot path; the checks that name the culprit only on a failure
+            _check_force(self.in_keys[0], force, "s_t")
+            _check_force(self.in_keys[0], next_force, "s_t+1")
         m = impact(force, next_force)
         penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
         if not bool(torch.isfinite(penalty).all()):  # finite forces whose impacts overflow
