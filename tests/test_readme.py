@@ -202,3 +202,18 @@ def test_the_sac_recipe_diff_the_readme_states_is_the_recipes():
     assert stated in " ".join(README.read_text().split())
     sac = " ".join((README.parent / "docs" / "SAC.md").read_text().split())
     assert f"{marked} lines, with {imports} gentlerl imports" in sac
+
+
+def test_reproduction_opens_with_the_six_claims_and_their_verdicts():
+    """docs/REPRODUCTION.md's first table: one row per claim (and claim 6 at 500k), each
+    verdict the one its amendment's table states."""
+    text = (README.parent / "docs" / "REPRODUCTION.md").read_text()
+    first = text[: text.index("## ")]
+    rows = [ln for ln in first.splitlines() if re.match(r"^\| [1-6]\.? ", ln)]
+    verdicts = [re.search(r"\*\*(reproduced|not reproduced|partly)\*\*", r).group(1) for r in rows]
+    assert verdicts == [
+        "reproduced", "not reproduced", "partly", "reproduced", "reproduced", "partly",
+        "not reproduced",
+    ]  # fmt: skip
+    for number in ("6.70 N", "18 %", "9.16 vs 3.22 N", "2.74 N", "6.50 N", "0.84", "0.36"):
+        assert number in first and number in text[len(first) :], number
