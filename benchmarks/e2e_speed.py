@@ -24,16 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gentlerl.analysis.runs import load_run
 from gentlerl.training import make_config, train
 
 PAPER_FRAMES = 500_000
-
-
-def _series(run_dir: Path, name: str) -> np.ndarray:
-    """``[frames, value]`` rows of a logged scalar."""
-    path = run_dir / "logs" / "scalars" / f"{name}.csv"
-    rows = [line.split(",")[:2] for line in path.read_text().splitlines() if line[:1].isdigit()]
-    return np.array(rows, dtype=float).reshape(-1, 2)
 
 
 def run(args: argparse.Namespace, run_dir: Path) -> dict:
@@ -61,8 +55,9 @@ def run(args: argparse.Namespace, run_dir: Path) -> dict:
     start = time.perf_counter()
     summary = train(cfg)
     wall = time.perf_counter() - start
-    ups = _series(run_dir, "train/updates_per_s")
-    steps = _series(run_dir, "train/wall_s")
+    scalars = load_run(run_dir).scalars  # (frames, values) of each logged scalar
+    ups = np.stack(scalars["train/updates_per_s"], -1)
+    steps = np.stack(scalars["train/wall_s"], -1)
     random = steps[steps[:, 0] <= args.random_frames]
     learning = steps[steps[:, 0] > args.random_frames]
     random_fps = random[-1, 0] / random[-1, 1] if len(random) else float("nan")

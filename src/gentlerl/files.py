@@ -33,12 +33,17 @@ class LinkRefusedError(OSError):
 
 
 def write_atomic(
-    path: str | os.PathLike, data: str | bytes | Callable[[IO], None], *, newline: str | None = None
+    path: str | os.PathLike,
+    data: str | bytes | Callable[[IO], None],
+    *,
+    newline: str | None = None,
+    binary: bool = False,
 ) -> None:
-    """``path`` holding ``data`` (text, bytes, or ``data(file)`` writing into the open file),
-    written to a temporary file in its folder, flushed to disk, then renamed over ``path``."""
+    """``path`` holding ``data`` (text, bytes, or ``data(file)`` writing into the open file, a
+    binary one with ``binary``), written to a temporary file in its folder, flushed to disk, then
+    renamed over ``path``."""
     path = Path(path)
-    binary = isinstance(data, bytes)
+    binary = binary or isinstance(data, bytes)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb" if binary else "w", newline=None if binary else newline) as f:

@@ -12,7 +12,6 @@ from __future__ import annotations
 import errno
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +22,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.data import ReplayBuffer
 
 from gentlerl.data.prioritized import FlatPriorityTree
+from gentlerl.files import write_atomic
 from gentlerl.models import make_actor
 from gentlerl.training.config import TrainConfig, group_flat_config, make_config
 from gentlerl.training.policy_weights import actor_weights_problem
@@ -91,15 +91,9 @@ def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(_to_plain(state), f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+        write_atomic(path, lambda f: torch.save(_to_plain(state), f), binary=True)
     except BaseException as err:
-        Path(tmp).unlink(missing_ok=True)
         if isinstance(err, RuntimeError | OSError) and _out_of_space(err, path.parent):
             kept = f"{path} is intact" if path.exists() else f"no {path.name} was written"
             raise OSError(
