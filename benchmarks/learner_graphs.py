@@ -27,10 +27,10 @@ from learner_speed import ACT, OBS, Scale, _batch, _time, make_loss, make_scale
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
-from gentlerl.agent.model_step import ModelStep
 from gentlerl.agent.seeds import SeedBatchedLearner
 from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
+from gentlerl.rewards.model_step import ModelStep
 
 MODES = ("eager", "compile", "cudagraphs", "compile+cudagraphs")
 

@@ -21,13 +21,13 @@
 # the paper); --method published: the method as the paper gives it
 # (gentleness.surprise_nll_floor=null network.bounded_support=false
 # learner.episodic_intrinsic=true gentleness.dynamics_surprise_scale=1
-# gentleness.recompute_surprise=false, and the paper's support (-100, 100) for every head:
+# gentleness.rescore_surprise=false, and the paper's support (-100, 100) for every head:
 # network.v_min=-100 network.v_max=100 network.dense_reward_bound=null). Both are needed for the
 # two rows of each claim. The ablation methods switch off one change at a time from `changes`:
 # no-support-cap (network.bounded_support=false), episodic (learner.episodic_intrinsic=true),
 # unscaled-rs (gentleness.dynamics_surprise_scale=1), shared-support
 # (network.dense_reward_bound=null: [v_min, v_max] = [-10, 10] for every head), no-recompute
-# (gentleness.recompute_surprise=false: r^sp as stored at collection). no-nll-floor
+# (gentleness.rescore_surprise=false: r^sp as stored at collection). no-nll-floor
 # (gentleness.surprise_nll_floor=null) was the third amendment's ablation of the floor at 0 and is
 # the same as `changes` today; nll-floor (gentleness.surprise_nll_floor=0) puts that floor back.
 # Method II (docs/REPRODUCTION.md, ninth amendment): rsp-bound (network.penalty_surprise_bound=3:
@@ -79,11 +79,11 @@ case "$method" in
   published) extra+=(--set gentleness.surprise_nll_floor=null --set network.bounded_support=false
                      --set learner.episodic_intrinsic=true
                      --set gentleness.dynamics_surprise_scale=1
-                     --set gentleness.recompute_surprise=false
+                     --set gentleness.rescore_surprise=false
                      --set network.v_min=-100 --set network.v_max=100
                      --set network.dense_reward_bound=null) ;;
   shared-support) extra+=(--set network.dense_reward_bound=null) ;;
-  no-recompute) extra+=(--set gentleness.recompute_surprise=false) ;;
+  no-recompute) extra+=(--set gentleness.rescore_surprise=false) ;;
   no-nll-floor) extra+=(--set gentleness.surprise_nll_floor=null) ;;
   nll-floor) extra+=(--set gentleness.surprise_nll_floor=0) ;;
   no-support-cap) extra+=(--set network.bounded_support=false) ;;

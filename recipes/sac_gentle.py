@@ -33,17 +33,13 @@ from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss, SoftUpdate
 from tqdm import tqdm
 
-from gentlerl.agent import VARIANTS, IntrinsicRewards
-from gentlerl.apps.evaluate import summarize
 from gentlerl.config import GentlenessConfig, Range
 from gentlerl.envs import TASKS, make_env
-from gentlerl.training.builders import make_eval_env
-from gentlerl.training.evaluation import evaluate
-from gentlerl.transforms import SumRewards
+from gentlerl.rewards import VARIANTS, IntrinsicRewards, SumRewards
+from gentlerl.training import EVAL_SEED_OFFSET, evaluate_actor
 
-#: The held-out seed of the final evaluation (``gentlerl evaluate --seed 0``) and the offset of
-#: the in-loop evaluations' seed from the run's.
-FINAL_EVAL_SEED, EVAL_SEED_OFFSET = 0, 10_000
+#: The held-out seed of the final evaluation (``gentlerl evaluate --seed 0``).
+FINAL_EVAL_SEED = 0
 
 
 @dataclass
@@ -141,27 +137,17 @@ def make_loss_module(model: nn.ModuleList, cfg: SACConfig) -> tuple[SACLoss, Sof
 
 def make_env_and_rewards(cfg: SACConfig) -> tuple[TransformedEnv, IntrinsicRewards, SumRewards]:
     hand = make_env(cfg.task, seed=cfg.seed)
-    settings = GentlenessConfig(lam_prime=tuple(cfg.lam_prime), reward_delay=cfg.reward_delay)
-    variant = "r+rf" if cfg.variant == "r" else cfg.variant  # r: the penalty is logged only
+    settings = GentlenessConfig(
+        lam_prime=tuple(cfg.lam_prime), reward_delay=cfg.reward_delay
+    )  # gentlerl
+    variant = "r+rf" if cfg.variant == "r" else cfg.variant  # gentlerl: r logs the penalty
     rewards = IntrinsicRewards.from_env(hand, variant, settings, seed=cfg.seed)  # gentlerl
-    summed = ["reward"] if cfg.variant == "r" else rewards.reward_keys
+    summed = ["reward"] if cfg.variant == "r" else rewards.reward_keys  # gentlerl
     reward_sum = SumRewards(summed)  # gentlerl
     env = TransformedEnv(hand, rewards.transform.clone())  # gentlerl
     env.append_transform(RewardSum())
     env.append_transform(reward_sum)  # gentlerl
     return env, rewards, reward_sum
-
-
-def final_evaluation(actor: nn.Module, cfg: SACConfig) -> dict[str, float]:
-    env = make_eval_env(lambda: make_env(cfg.task), FINAL_EVAL_SEED)
-    torch.manual_seed(FINAL_EVAL_SEED)
-    _, episodes = evaluate(env, actor, cfg.final_eval_episodes, max_steps=100_000)
-    successful = [e["max_impact"] for e in episodes if e["success"] == 1.0]
-    summary = summarize(episodes)
-    summary["median_max_impact_successful"] = (
-        float(torch.tensor(successful).median()) if successful else float("nan")
-    )
-    return summary
 
 
 def train(cfg: SACConfig) -> dict[str, float]:
@@ -177,7 +163,7 @@ def train(cfg: SACConfig) -> dict[str, float]:
     rb = TensorDictReplayBuffer(
         storage=LazyTensorStorage(cfg.buffer_size), batch_size=cfg.batch_size
     )
-    rb.append_transform(rewards.sampling_transform(reward_sum))  # gentlerl
+    rb.append_transform(rewards.rescore_transform(reward_sum))  # gentlerl
     collector = Collector(
         env,
         model[0],
@@ -186,7 +172,6 @@ def train(cfg: SACConfig) -> dict[str, float]:
         init_random_frames=cfg.init_random_frames,
         auto_register_policy_transforms=False,  # the actor is stateless: nothing to register
     )
-    eval_env = make_eval_env(lambda: make_env(cfg.task), cfg.seed + EVAL_SEED_OFFSET)
     frames, credit, evals = 0, 0.0, []
     bar = tqdm(total=cfg.total_frames, desc=f"sac {cfg.task} {cfg.variant} s{cfg.seed}")
     for batch in collector:
@@ -205,7 +190,9 @@ def train(cfg: SACConfig) -> dict[str, float]:
                 target_updater.step()
         collector.update_policy_weights_()
         if frames % cfg.eval_every_frames < batch.numel():
-            summary, _ = evaluate(eval_env, model[0], cfg.eval_episodes, max_steps=100_000)
+            summary = evaluate_actor(  # gentlerl: success, impact (N)
+                lambda: make_env(cfg.task), model[0], cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET
+            )
             evals.append({"frames": frames, **summary})
             bar.set_postfix(eval=f"{summary['success_rate']:.2f}")
         bar.update(batch.numel())
@@ -219,7 +206,9 @@ def train(cfg: SACConfig) -> dict[str, float]:
         "updates": rewards.num_updates,
         "frames": frames,
         "final_alpha": loss.log_alpha.exp().item(),  # the entropy temperature it ended at
-        **final_evaluation(model[0], cfg),
+        **evaluate_actor(  # gentlerl: held-out episodes, as gentlerl evaluate
+            lambda: make_env(cfg.task), model[0], cfg.final_eval_episodes, FINAL_EVAL_SEED
+        ),
     }
     policy = run_dir / "actor.pt.tmp"  # the final actor, for later evaluations
     torch.save(model[0].state_dict(), policy)

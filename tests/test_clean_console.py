@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from gentlerl.agent import IntrinsicRewards
 from gentlerl.apps.closing import closing_text
 from gentlerl.config import GentlenessConfig
+from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training.logging import force_unit
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from gentlerl import cli
-from gentlerl.agent import VARIANTS
 from gentlerl.apps import train as train_cli
 from gentlerl.envs import TASKS
+from gentlerl.rewards import VARIANTS
 from tests.test_plot import _fake_run
 
 ROOT = Path(__file__).resolve().parents[1]

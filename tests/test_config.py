@@ -4,13 +4,13 @@ import pytest
 from hydra import compose, initialize
 from torchrl.envs import RenameTransform, TransformedEnv
 
-from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
-from gentlerl.agent.variants import discounted_horizon
 from gentlerl.apps.train import config_from_hydra, describe, register_configs
 from gentlerl.config import SCALES, GentlenessConfig
 from gentlerl.envs import TASKS
 from gentlerl.envs.batched import available_cores
+from gentlerl.rewards import VARIANTS, IntrinsicRewards
+from gentlerl.rewards.variants import discounted_horizon
 from gentlerl.training import make_config
 from gentlerl.training.builders import (
     check_env_keys,
@@ -229,3 +229,16 @@ def test_dynamics_surprise_is_scaled_down_at_cpu_scale_only(scale, factor):
     (surprise,) = [t for t in rewards.transform if isinstance(t, DynamicsSurprise)]
     assert cfg.gentleness.dynamics_surprise_scale == factor
     assert surprise.scale == pytest.approx(2.0 * factor)
+
+
+def test_a_checkpoint_config_with_the_old_name_of_rescore_surprise_keeps_its_value():
+    """``gentleness.recompute_surprise`` (the field's name before "rescore" became the one verb)
+    loads as ``rescore_surprise`` with the value it was saved with, not today's default."""
+    from gentlerl.training.config import group_flat_config, make_config
+
+    saved = make_config().to_dict()
+    del saved["gentleness"]["rescore_surprise"]
+    saved["gentleness"]["recompute_surprise"] = False
+    grouped = group_flat_config(saved)
+    assert "recompute_surprise" not in grouped["gentleness"]
+    assert grouped["gentleness"]["rescore_surprise"] is False

@@ -1,5 +1,5 @@
 """The drop-in API for other TorchRL agents: ``IntrinsicRewards.from_env``, ``SumRewards``,
-``FreshRewards`` (``sampling_transform``), the self-counting schedule and the stale-model guard."""
+``RescoreRewards`` (``rescore_transform``), the self-counting schedule and the stale-model guard."""
 
 import multiprocessing
 
@@ -11,10 +11,9 @@ from torchrl.envs import RewardSum, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
-from gentlerl.agent import IntrinsicRewards
 from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, mixture_moments, penalty_surprise
-from gentlerl.transforms import FreshRewards, SumRewards
+from gentlerl.rewards import IntrinsicRewards, RescoreRewards, SumRewards
 from tests.test_transforms import _pressing_rollout
 from tests.toy_env import ToyHandEnv
 
@@ -109,11 +108,11 @@ def _contact_batch(rewards: IntrinsicRewards):
     return reward_sum, _pressing_rollout(env)
 
 
-def test_fresh_rewards_score_a_sample_with_the_current_target_model():
+def test_rescore_rewards_score_a_sample_with_the_current_target_model():
     rewards = small_rewards(reward_delay=1, penalty_target_period=1)
     reward_sum, batch = _contact_batch(rewards)
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(100), batch_size=12)
-    rb.append_transform(rewards.sampling_transform(reward_sum))
+    rb.append_transform(rewards.rescore_transform(reward_sum))
     rb.extend(batch)
     rewards.extend(batch)
     assert (rb[:]["next", keys.PENALTY_SURPRISE] == 0).all()  # the gate is still closed
@@ -145,18 +144,18 @@ def test_fresh_rewards_refuse_n_step_transitions():
     _, batch = _contact_batch(rewards)
     batch["steps_to_next_obs"] = torch.full((12, 1), 3)
     with pytest.raises(ValueError, match="1-step transitions.*up to 3"):
-        FreshRewards(rewards.gated_transforms)(batch)
+        RescoreRewards(rewards.gated_transforms)(batch)
 
 
-def test_recompute_surprise_never_used_is_an_error_once_the_rewards_are_on():
+def test_rescore_surprise_never_used_is_an_error_once_the_rewards_are_on():
     rewards = small_rewards(reward_delay=2)
     _, batch = _contact_batch(rewards)
     rewards.extend(batch)
     for _ in range(3):  # the gate opens after the second; the first update with it on may
         rewards.update()  # come before its batch is sampled
-    with pytest.raises(RuntimeError, match="sampling_transform"):
+    with pytest.raises(RuntimeError, match="rescore_transform"):
         rewards.update()
-    quiet = small_rewards(reward_delay=2, recompute_surprise=False)
+    quiet = small_rewards(reward_delay=2, rescore_surprise=False)
     quiet.extend(batch)
     for _ in range(3):
         quiet.update()
@@ -168,7 +167,7 @@ def test_update_counts_its_own_steps_as_an_explicit_count_does():
     _, batch = _contact_batch(counted)
     for stack in (counted, explicit):
         stack.extend(batch)
-        stack.sampling_transform()(batch.clone())
+        stack.rescore_transform()(batch.clone())
     torch.manual_seed(0)
     for _ in range(2):
         counted.update()
@@ -205,7 +204,7 @@ def test_a_model_reward_in_another_process_is_an_error():
     child.start()
     message = queue.get(timeout=60)
     child.join(timeout=60)
-    assert "its model trains in process" in message and "sampling_transform" in message
+    assert "its model trains in process" in message and "rescore_transform" in message
     rewards.transform(batch)  # in its own process it still runs
 
 
@@ -276,14 +275,14 @@ def test_from_env_refuses_an_image_observation_and_a_meta_device():
 
 
 def test_a_deep_copy_of_fresh_rewards_scores_with_the_trained_model():
-    """The finding: a deep copy or pickle of FreshRewards had its own model whose gate never
+    """The finding: a deep copy or pickle of RescoreRewards had its own model whose gate never
     opened; a deep copy now shares the model and gate, an unpickled one refuses to run."""
     import copy
     import pickle
 
     rewards = small_rewards(reward_delay=1)
     _, reward_sum = summed_env(rewards)
-    fresh = rewards.sampling_transform(reward_sum)
+    fresh = rewards.rescore_transform(reward_sum)
     copied, unpickled = copy.deepcopy(fresh), pickle.loads(pickle.dumps(fresh))
     for mine, theirs in zip(copied.rewards, rewards.gated_transforms, strict=True):
         assert mine.model is theirs.model and mine.active is theirs.active

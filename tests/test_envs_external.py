@@ -13,7 +13,6 @@ from torchrl.envs import Compose, DoubleToFloat, EnvBase, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
-from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.analysis.runs import find_runs
 from gentlerl.analysis.summary import summary_table
@@ -22,6 +21,7 @@ from gentlerl.apps.train import config_from_hydra, register_configs
 from gentlerl.config import GentlenessConfig
 from gentlerl.envs.external import FORCE_ADAPTERS, adapt_env, make_external_env
 from gentlerl.models import make_actor
+from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training import save_checkpoint
 from gentlerl.training.builders import default_env_factory
 from gentlerl.training.config import make_config

@@ -177,7 +177,7 @@ def test_the_hand_env_refuses_pickle_in_one_line():
 
     from torchrl.envs import TransformedEnv
 
-    from gentlerl.transforms import SumRewards
+    from gentlerl.rewards import SumRewards
 
     for env in (make_env("touch", seed=0), make_env("touch", seed=0, num_envs=2)):
         with pytest.raises(TypeError, match=r"cannot be pickled \(its MuJoCo model would be freed"):

@@ -6,9 +6,10 @@ import math
 import pytest
 import torch
 
-from gentlerl.apps.evaluate import evaluate_policy, main, summarize
+from gentlerl.apps.evaluate import evaluate_policy, main
 from gentlerl.models import make_actor
 from gentlerl.training import make_config, save_checkpoint
+from gentlerl.training.evaluation import summarize
 
 INDEX_KNUCKLE = 3  # actuator robot0:A_FFJ2
 

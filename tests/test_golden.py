@@ -76,7 +76,7 @@ CONFIG = dict(
         surprise_scale=1.0,
         dynamics_surprise_scale=1.0,
         surprise_nll_floor=0.0,
-        recompute_surprise=False,
+        rescore_surprise=False,
         icm_eta=1.0,
     ),
     logging=dict(

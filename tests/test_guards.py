@@ -162,12 +162,12 @@ def test_a_checkpoint_older_than_a_field_resumes_with_the_behaviour_of_its_time(
     ckpt = run_dir / "checkpoint.pt"
     state = load_checkpoint(ckpt)
     del state["config"]["network"]["dense_reward_bound"]
-    del state["config"]["gentleness"]["recompute_surprise"]
+    del state["config"]["gentleness"]["rescore_surprise"]
     del state["supports"]
     save_checkpoint(ckpt, state)
     with pytest.raises(ValueError, match=r"network.dense_reward_bound \(None -> 1.0\)"):
         Trainer(tiny_config(run_dir, **SHORT, resume=True), toy_env)
     earlier = tiny_config(run_dir, **SHORT, resume=True)
     earlier.network.dense_reward_bound = None
-    earlier.gentleness.recompute_surprise = False
+    earlier.gentleness.rescore_surprise = False
     assert Trainer(earlier, toy_env).learner.loss.value_network.module.v_min == (-10.0,) * 3

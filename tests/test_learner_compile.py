@@ -6,9 +6,10 @@ import torch._inductor.config
 from tensordict import TensorDict
 from torch._dynamo.utils import counters
 
-from gentlerl.agent.learner import EagerOnBuildFailure, Learner
+from gentlerl.agent.learner import Learner
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.objectives.compile import EagerOnBuildFailure
 
 #: Eager vs compiled over 4 updates (inductor fuses and reorders float32 sums); measured: <= 2.4e-7.
 RTOL, ATOL = 1e-5, 1e-6

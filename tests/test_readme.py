@@ -217,3 +217,22 @@ def test_reproduction_opens_with_the_six_claims_and_their_verdicts():
     ]  # fmt: skip
     for number in ("6.70 N", "18 %", "9.16 vs 3.22 N", "2.74 N", "6.50 N", "0.84", "0.36"):
         assert number in first and number in text[len(first) :], number
+
+
+def test_the_sac_recipe_imports_only_the_public_names_of_gentlerls_packages():
+    """The recipe's gentlerl imports name packages (never a module inside one), and every name
+    it imports is in that package's ``__all__``: what a TorchRL user may import too."""
+    import ast
+    import importlib
+
+    tree = ast.parse((README.parent / "recipes" / "sac_gentle.py").read_text())
+    imports = [
+        node
+        for node in tree.body
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("gentlerl")
+    ]
+    assert imports
+    for node in imports:
+        assert node.module.count(".") == 1, f"{node.module} is a module inside a package"
+        public = importlib.import_module(node.module).__all__
+        assert {alias.name for alias in node.names} <= set(public), node.module

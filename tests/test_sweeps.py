@@ -122,13 +122,13 @@ def test_the_published_method_switches_off_every_cpu_scale_change_as_the_paper_p
     }
     published = _method_settings("published")
     assert differs - BUDGET_AND_SIZES <= set(published), differs - BUDGET_AND_SIZES - set(published)
-    assert "gentleness.recompute_surprise" in published  # the switch this test was written for
+    assert "gentleness.rescore_surprise" in published  # the switch this test was written for
     for key, value in published.items():
         group, field = key.split(".")
         assert yaml.safe_load(value) == SCALES["paper"][group][field], (key, value)
     # Each ablation switches one setting, to the published value (nll-floor puts a floor back).
     ablations = {
-        "no-recompute": "gentleness.recompute_surprise", "shared-support": "network.dense_reward_bound",
+        "no-recompute": "gentleness.rescore_surprise", "shared-support": "network.dense_reward_bound",
         "no-nll-floor": "gentleness.surprise_nll_floor", "no-support-cap": "network.bounded_support",
         "episodic": "learner.episodic_intrinsic", "unscaled-rs": "gentleness.dynamics_surprise_scale",
     }  # fmt: skip

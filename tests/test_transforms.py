@@ -13,9 +13,9 @@ from torchrl.envs import Compose, ParallelEnv, RenameTransform, SerialEnv, Trans
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
-from gentlerl.agent import VARIANTS, IntrinsicRewards
 from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, information_gain, mixture_moments
+from gentlerl.rewards import VARIANTS, IntrinsicRewards
 from gentlerl.transforms import (
     DynamicsSurprise,
     ImpactPenalty,

@@ -3,7 +3,7 @@
 import pytest
 
 from gentlerl import keys
-from gentlerl.agent.variants import (
+from gentlerl.rewards.variants import (
     COMPONENTS,
     VARIANTS,
     discounted_horizon,

@@ -9,9 +9,9 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
-from gentlerl.agent import IntrinsicRewards
-from gentlerl.agent.variants import head_supports, reward_keys
 from gentlerl.config import GentlenessConfig
+from gentlerl.rewards import IntrinsicRewards
+from gentlerl.rewards.variants import head_supports, reward_keys
 from gentlerl.transforms import ForcePenalty, TorquePenalty
 from tests.toy_env import ToyHandEnv
 

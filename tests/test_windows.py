@@ -5,9 +5,9 @@ import torch
 from tensordict import TensorDict
 
 from gentlerl import keys
-from gentlerl.agent import IntrinsicRewards
 from gentlerl.config import GentlenessConfig
 from gentlerl.data import WINDOW, NStepWriter, make_replay_buffer, nstep_return, nstep_windows
+from gentlerl.rewards import IntrinsicRewards
 
 
 def _trajectory(T=12, terminal_at=6, obs_dim=1, act_dim=1):
@@ -67,7 +67,7 @@ def test_writer_windows_reproduce_the_stored_nstep_sums_across_writes():
     assert again[0].item() == pytest.approx(-2.52) and again[5].item() == pytest.approx(-10.4)
 
 
-def test_refresh_recomputes_penalty_surprise_with_the_current_target_model():
+def test_rescore_windows_scores_penalty_surprise_with_the_current_target_model():
     obs_dim, act_dim = 4, 2
     rewards = IntrinsicRewards(
         "r+rf+rsp",
@@ -77,7 +77,7 @@ def test_refresh_recomputes_penalty_surprise_with_the_current_target_model():
         feature_shapes={},
     )
     rewards.step(0)
-    (rsp,) = rewards.recomputed
+    (rsp,) = rewards.rescored
     assert rewards.window_keys == ["observation", "action", ("next", keys.PENALTY)]
     data = _trajectory(obs_dim=obs_dim, act_dim=act_dim)
     data = rsp(data)  # r^sp per step under the model as it is now
@@ -88,13 +88,13 @@ def test_refresh_recomputes_penalty_surprise_with_the_current_target_model():
     writer.extend(data)
     batch = rb[:]
     stored = batch["next", keys.PENALTY_SURPRISE].clone()
-    metrics = rewards.refresh(batch, 0.9)
+    metrics = rewards.rescore_windows(batch, 0.9)
     torch.testing.assert_close(batch["next", keys.PENALTY_SURPRISE], stored)  # same model
     assert metrics["penalty_surprise_per_contact_step"] > 0
     # A new target model (another copy of the trained model): the stored bonus is replaced.
     with torch.no_grad():
         rewards.losses["penalty"].target_model_params.apply_(lambda p: p.add_(0.5))
-    rewards.refresh(batch, 0.9)
+    rewards.rescore_windows(batch, 0.9)
     changed = batch["next", keys.PENALTY_SURPRISE]
     assert not torch.allclose(changed, stored)
     per_step = rsp(_trajectory(obs_dim=obs_dim, act_dim=act_dim))["next", keys.PENALTY_SURPRISE]
@@ -103,25 +103,25 @@ def test_refresh_recomputes_penalty_surprise_with_the_current_target_model():
     torch.testing.assert_close(changed[0], expected)
 
 
-def test_refresh_names_the_missing_window():
+def test_rescore_windows_names_the_missing_window():
     rewards = IntrinsicRewards(
         "r+rf+rsp", GentlenessConfig(model_hidden=8), obs_dim=1, action_dim=1, feature_shapes={}
     )
     with pytest.raises(KeyError, match="window"):
-        rewards.refresh(_trajectory(), 0.9)
+        rewards.rescore_windows(_trajectory(), 0.9)
 
 
 def test_paper_scale_stores_the_surprise():
     rewards = IntrinsicRewards(
         "r+rf+rsp",
-        GentlenessConfig(model_hidden=8, recompute_surprise=False),
+        GentlenessConfig(model_hidden=8, rescore_surprise=False),
         obs_dim=1,
         action_dim=1,
         feature_shapes={},
     )
-    assert rewards.recomputed == [] and rewards.window_keys == []
+    assert rewards.rescored == [] and rewards.window_keys == []
     batch = _trajectory()
-    assert rewards.refresh(batch, 0.9) == {}
+    assert rewards.rescore_windows(batch, 0.9) == {}
 
 
 def test_writes_shorter_than_n_steps_lose_nothing_across_a_resume():

@@ -1,9 +1,10 @@
-"""The agent: which rewards a variant learns from (critic heads), and the parts that learn them.
+"""The D4PG agent: the multi-head learner and the builder that wires it for a config.
 
-``variants`` is the registry of reward components and variants; ``rewards`` builds a variant's
-:class:`IntrinsicRewards`; ``learner`` the D4PG :class:`Learner`; ``builder`` wires both for a
-config, so that any runner (one process, several, distributed) trains the same agent. Names are
-imported on first use (:mod:`gentlerl.lazy`): the variants' names need no torch.
+``learner`` holds the D4PG :class:`Learner` (loss, optimiser, target updater); ``seeds`` batches
+several seeds' learners as one ``torch.vmap``; ``builder`` wires the policy, the learner, the
+rewards (:mod:`gentlerl.rewards`) and the replay for a config, so that any runner (one process,
+several, distributed) trains the same agent. Names are imported on first use
+(:mod:`gentlerl.lazy`).
 """
 
 from gentlerl.lazy import lazy_exports
@@ -11,7 +12,8 @@ from gentlerl.lazy import lazy_exports
 __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
-        "gentlerl.agent.rewards": ("IntrinsicRewards",),
-        "gentlerl.agent.variants": ("COMPONENTS", "VARIANTS", "Component", "Part", "reward_keys"),
+        "gentlerl.agent.builder": ("AgentBuilder",),
+        "gentlerl.agent.learner": ("Learner",),
+        "gentlerl.agent.seeds": ("SeedBatchedLearner",),
     },
 )

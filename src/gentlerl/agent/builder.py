@@ -18,14 +18,6 @@ from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
-from gentlerl.agent.rewards import IntrinsicRewards
-from gentlerl.agent.specs import env_feature_shapes
-from gentlerl.agent.variants import (
-    discounted_horizon,
-    head_supports,
-    intrinsic_keys,
-    reward_keys,
-)
 from gentlerl.config import (
     CollectorConfig,
     EnvConfig,
@@ -37,6 +29,14 @@ from gentlerl.config import (
 from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.rewards.intrinsic import IntrinsicRewards
+from gentlerl.rewards.specs import env_feature_shapes
+from gentlerl.rewards.variants import (
+    discounted_horizon,
+    head_supports,
+    intrinsic_keys,
+    reward_keys,
+)
 
 
 class AgentConfig(Protocol):
@@ -86,7 +86,7 @@ class AgentBuilder:
         self.horizon = episode_steps(env)
 
     def head_supports(self) -> tuple[list[float], list[float]]:
-        """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.agent.variants.head_supports`.
+        """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.rewards.variants.head_supports`.
 
         A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
         ``network.penalty_surprise_bound`` where set) x the discounted horizon of

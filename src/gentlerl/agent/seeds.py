@@ -17,8 +17,8 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
 
-from gentlerl.agent.learner import compile_step
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.objectives.compile import compile_step
 
 
 class SeedBatchedLearner:

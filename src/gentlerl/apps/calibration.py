@@ -115,9 +115,9 @@ def critic_calibration(
     """
     from gentlerl.envs import make_env
     from gentlerl.models import make_exploration_policy
-    from gentlerl.training.builders import default_env_factory, make_eval_env
+    from gentlerl.training.builders import default_env_factory
     from gentlerl.training.critic_calibration import measure_calibration, penalty_surprise_sources
-    from gentlerl.training.evaluation import rollout_episodes
+    from gentlerl.training.evaluation import make_eval_env, rollout_episodes
 
     if isinstance(episodes, bool) or not (isinstance(episodes, int) and 1 <= episodes <= MAX_HANDS):
         raise ValueError(

@@ -20,39 +20,13 @@ from functools import partial
 from pathlib import Path
 from typing import IO
 
-import numpy as np
 import torch
 
 from gentlerl.apps.outputs import check_output_file
 from gentlerl.apps.parsing import command_parser
 from gentlerl.envs import CALIBRATIONS, TASKS, make_env
 from gentlerl.files import write_atomic
-
-SUMMARY_KEYS = ("episodes", "success_rate", "broken_rate", "median_max_impact", "p90_max_impact")
-
-
-def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
-    """Success and broken rates and median / p90 max impact (N) of evaluation episodes.
-
-    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1; an env without them
-    has no rates), ``max_impact`` and ``return`` (``mean_return``), as
-    :func:`gentlerl.training.evaluation.evaluate` returns them.
-    """
-    if not episodes:
-        raise ValueError("need at least one episode to summarize, got none")
-    impact = np.array([e["max_impact"] for e in episodes], dtype=np.float64)
-    rates = {
-        f"{k}_rate": float(np.mean([e[k] for e in episodes]))
-        for k in ("success", "broken")
-        if all(k in e for e in episodes)
-    }
-    return {
-        "episodes": len(episodes),
-        **rates,
-        "median_max_impact": float(np.median(impact)),
-        "p90_max_impact": float(np.percentile(impact, 90)),
-        "mean_return": float(np.mean([e.get("return", np.nan) for e in episodes])),
-    }
+from gentlerl.training.evaluation import summarize
 
 
 def evaluate_policy(
@@ -69,13 +43,14 @@ def evaluate_policy(
     ``task`` / ``calibration``: ``None`` keeps the run's own. ``episodes_csv``: also write the
     episodes there (:func:`write_episodes`). Returns ``task`` and the :func:`summarize` numbers.
     """
-    from gentlerl.training.builders import default_env_factory, make_eval_env
+    from gentlerl.training.builders import default_env_factory
     from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
     from gentlerl.training.evaluation import (
         MAX_EPISODE_STEPS,
         check_episodes,
         check_policy_fits,
         evaluate,
+        make_eval_env,
     )
     from gentlerl.training.logging import force_unit
 

@@ -105,11 +105,12 @@ def tolerance_force_scale(env_impact: float, reference_impact: float) -> float:
 def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = None) -> list:
     """``episodes`` rollouts (``[T]`` tensordicts with ``impact`` in N) on ``env_name``: random
     actions, or the noise-free actor of the checkpoint ``policy`` (its run's env, in newtons)."""
-    from gentlerl.training.builders import default_env_factory, make_eval_env
+    from gentlerl.training.builders import default_env_factory
     from gentlerl.training.evaluation import (
         MAX_EPISODE_STEPS,
         check_episodes,
         check_policy_fits,
+        make_eval_env,
         rollout_episodes,
     )
 

@@ -276,7 +276,7 @@ class GentlenessConfig:
         "disagreement, which fades as it learns)",
         choices=("nll", "information_gain"),
     )
-    recompute_surprise: bool = setting(
+    rescore_surprise: bool = setting(
         True, "recompute r^sp of each sampled n-step transition with the current target model"
     )
     icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")

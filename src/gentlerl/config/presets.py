@@ -40,7 +40,7 @@ SCALES: dict[str, dict[str, Any]] = {
             "model_batch_size": 256,
             "model_buffer_size": 1_000_000,
             "surprise_nll_floor": None,
-            "recompute_surprise": False,  # stored at collection, as the paper's reading
+            "rescore_surprise": False,  # stored at collection, as the paper's reading
             "dynamics_surprise_scale": 1.0,  # eq. 6 as written
         },
         "logging": {"eval_every_frames": 25_000, "checkpoint_every_frames": 50_000},

@@ -81,7 +81,7 @@ def rescore_windows(
     window = batch.get(WINDOW, None)
     if window is None:
         raise KeyError(
-            "recompute_surprise needs each transition's window of steps ('window'), written "
+            "rescore_surprise needs each transition's window of steps ('window'), written "
             "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
         )
     flat, steps = window.reshape(-1).to(device), batch.get("steps_to_next_obs")

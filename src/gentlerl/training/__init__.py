@@ -10,6 +10,12 @@ __getattr__, __dir__, __all__ = lazy_exports(
     {
         "gentlerl.training.checkpoint": ("load_checkpoint", "load_policy", "save_checkpoint"),
         "gentlerl.training.config": ("TrainConfig", "make_config", "validate"),
+        "gentlerl.training.evaluation": (
+            "EVAL_SEED_OFFSET",
+            "evaluate_actor",
+            "make_eval_env",
+            "summarize",
+        ),
         "gentlerl.training.loop": ("Trainer", "train"),
     },
 )

@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import inspect
 import warnings
 from collections.abc import Callable
 from functools import partial
@@ -18,7 +17,6 @@ from torchrl.data.replay_buffers.scheduler import LinearScheduler
 from torchrl.envs import EnvBase, TransformedEnv
 
 from gentlerl import keys
-from gentlerl.agent import IntrinsicRewards
 from gentlerl.agent.builder import AgentBuilder
 from gentlerl.agent.learner import Learner
 from gentlerl.config import CollectorConfig
@@ -27,13 +25,14 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
 from gentlerl.files import write_atomic
 from gentlerl.lazy import record_missing_pandas
+from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training import guards
 from gentlerl.training.config import TrainConfig
+from gentlerl.training.evaluation import EVAL_SEED_OFFSET, make_eval_env, takes_num_envs
 from gentlerl.training.logging import RunLogger, episode_transforms
 from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.training.process_collector import ProcessCollector
 from gentlerl.training.seeding import seed_everything
-from gentlerl.transforms import ImpactPenalty
 
 EnvFactory = Callable[..., EnvBase]
 
@@ -94,15 +93,6 @@ def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
     for transform in episode_transforms():
         env.append_transform(transform)
     return env
-
-
-def takes_num_envs(env_factory: EnvFactory) -> bool:
-    """Whether ``env_factory`` builds batched envs (it takes ``num_envs``, as ``make_env``)."""
-    try:
-        params = inspect.signature(env_factory).parameters.values()
-    except (TypeError, ValueError):  # builtins / C callables: no signature to read
-        return False
-    return any(p.name == "num_envs" for p in params)
 
 
 def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> EnvFactory:
@@ -266,25 +256,6 @@ def make_run_collector(
         collector.shutdown()
         raise
     return collector
-
-
-def make_eval_env(
-    env_factory: EnvFactory, seed: int, episodes: int = 1, force_key: str = keys.TOUCH
-) -> EnvBase:
-    """The evaluation env (writes ``impact`` from ``force_key``): ``episodes`` hands stepped
-    together where the factory builds batched envs (all episodes of an evaluation in one
-    rollout), else one."""
-    batched = episodes > 1 and takes_num_envs(env_factory)
-    env = TransformedEnv(
-        env_factory(num_envs=episodes) if batched else env_factory(),
-        ImpactPenalty(in_keys=[force_key]),
-    )
-    env.set_seed(seed)
-    return env
-
-
-#: A run's evaluation env is seeded with the run's seed plus this (apart from every worker's).
-EVAL_SEED_OFFSET = 10_000
 
 
 def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:

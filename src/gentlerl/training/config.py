@@ -47,7 +47,7 @@ def _task_names() -> list[str]:
 
 
 def _variant_names() -> list[str]:
-    from gentlerl.agent.variants import VARIANTS
+    from gentlerl.rewards.variants import VARIANTS
 
     return list(VARIANTS)
 
@@ -92,7 +92,7 @@ class TrainConfig:
 
     @property
     def reward_keys(self) -> list[str]:
-        from gentlerl.agent.variants import reward_keys
+        from gentlerl.rewards.variants import reward_keys
 
         return reward_keys(self.variant)
 
@@ -183,13 +183,20 @@ def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
 #: Fields whose default changed the method, with the value that configs saved before them ran.
 _BEFORE = {
     ("network", "dense_reward_bound"): None,  # one shared [v_min, v_max] for every head
-    ("gentleness", "recompute_surprise"): False,  # r^sp stored at collection
+    ("gentleness", "rescore_surprise"): False,  # r^sp stored at collection
     ("gentleness", "dynamics_surprise_scale"): 1.0,  # r^s as eq. 6 writes it
 }
 
 
+#: Grouped fields renamed since (old name -> new name, in the same group).
+_RENAMED_FIELDS = {("gentleness", "recompute_surprise"): "rescore_surprise"}
+
+
 def _with_earlier_behaviour(grouped: dict[str, Any]) -> dict[str, Any]:
     out = {k: dict(v) if isinstance(v, dict) else v for k, v in grouped.items()}
+    for (group, old), new in _RENAMED_FIELDS.items():
+        if isinstance(out.get(group), dict) and old in out[group]:
+            out[group].setdefault(new, out[group].pop(old))
     for (group, name), value in _BEFORE.items():
         if isinstance(out.get(group), dict):  # a group the saved config has, without the field
             out[group].setdefault(name, value)

@@ -208,7 +208,7 @@ def penalty_surprise_sources(
     Means over those steps of :meth:`~gentlerl.transforms.PenaltySurprise.sources` under the
     run's transforms and today's target model (``transform``, as in
     :func:`measure_calibration`), plus ``r_sp`` as that model scores them (gate and scale
-    included; a run with ``recompute_surprise=false`` was paid the values of older models),
+    included; a run with ``rescore_surprise=false`` was paid the values of older models),
     ``nll`` = ``spread`` + ``error`` (unfloored), ``z2`` = 2 x ``error`` (the squared z-score),
     ``penalty_std``, ``contact_steps`` and ``steps``. ``z2_all_steps`` and ``spread_all_steps``
     average over every step, contact or not, as the model is trained: there a calibrated model

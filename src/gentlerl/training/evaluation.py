@@ -1,16 +1,29 @@
-"""Evaluation rollouts without exploration noise (and, for diagnostics, with it)."""
+"""Evaluation rollouts without exploration noise (and, for diagnostics, with it).
+
+:func:`evaluate_actor` is the public call: any TorchRL actor, on an env factory's env with the
+impact written (paper eq. 1), over held-out episodes, summarised as ``gentlerl evaluate`` prints
+it (success and broken rates, median / p90 max impact in the env's force unit).
+"""
 
 from __future__ import annotations
 
+import inspect
 import math
+from collections.abc import Callable, Sequence
+from typing import Any
 
+import numpy as np
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
-from torchrl.envs import EnvBase
+from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
+from gentlerl.transforms import ImpactPenalty
+
+#: A run's evaluation env is seeded with the run's seed plus this (apart from every worker's).
+EVAL_SEED_OFFSET = 10_000
 
 #: The most episodes a command rolls out (``gentlerl evaluate`` / ``forces``: ~1 hour at 200
 #: steps each), and the most steps of one of its episodes (the env's time limit ends them first).
@@ -131,3 +144,81 @@ def rank(result: dict[str, float]) -> tuple[float, float, float]:
     if math.isnan(success):
         return (result["return"], -broken, -result["max_impact_mean"])
     return (success, -broken, -result["max_impact_mean"])
+
+
+def takes_num_envs(env_factory: Callable[..., Any]) -> bool:
+    """Whether ``env_factory`` builds batched envs (it takes ``num_envs``, as ``make_env``)."""
+    try:
+        params = inspect.signature(env_factory).parameters.values()
+    except (TypeError, ValueError):  # builtins / C callables: no signature to read
+        return False
+    return any(p.name == "num_envs" for p in params)
+
+
+def make_eval_env(
+    env_factory: Callable[..., EnvBase], seed: int, episodes: int = 1, force_key: str = keys.TOUCH
+) -> EnvBase:
+    """The evaluation env (writes ``impact`` from ``force_key``): ``episodes`` hands stepped
+    together where the factory builds batched envs (all episodes of an evaluation in one
+    rollout), else one."""
+    batched = episodes > 1 and takes_num_envs(env_factory)
+    env = TransformedEnv(
+        env_factory(num_envs=episodes) if batched else env_factory(),
+        ImpactPenalty(in_keys=[force_key]),
+    )
+    env.set_seed(seed)
+    return env
+
+
+def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
+    """Success and broken rates and median / p90 max impact (N) of evaluation episodes.
+
+    ``episodes``: one dict per episode with ``success``, ``broken`` (0/1; an env without them
+    has no rates), ``max_impact`` and ``return`` (``mean_return``), as :func:`evaluate` returns
+    them.
+    """
+    if not episodes:
+        raise ValueError("need at least one episode to summarize, got none")
+    impact = np.array([e["max_impact"] for e in episodes], dtype=np.float64)
+    rates = {
+        f"{k}_rate": float(np.mean([e[k] for e in episodes]))
+        for k in ("success", "broken")
+        if all(k in e for e in episodes)
+    }
+    return {
+        "episodes": len(episodes),
+        **rates,
+        "median_max_impact": float(np.median(impact)),
+        "p90_max_impact": float(np.percentile(impact, 90)),
+        "mean_return": float(np.mean([e.get("return", np.nan) for e in episodes])),
+    }
+
+
+def evaluate_actor(
+    env_factory: Callable[..., EnvBase],
+    actor: TensorDictModule,
+    episodes: int,
+    seed: int = 0,
+    *,
+    force_key: str = keys.TOUCH,
+) -> dict[str, float]:
+    """``episodes`` deterministic episodes of ``actor`` on ``env_factory()``'s env, seeded with
+    ``seed``, as ``gentlerl evaluate --episodes N --seed S`` measures a saved policy.
+
+    Returns :func:`summarize`'s numbers and ``median_max_impact_successful`` (NaN when no
+    episode succeeded). Any TorchRL actor that reads the env's observation works (a SAC
+    ``ProbabilisticActor`` acts with its mode).
+    """
+    check_episodes(episodes)
+    env = make_eval_env(env_factory, seed, episodes, force_key)
+    torch.manual_seed(seed)
+    try:
+        _, per_episode = evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
+    finally:
+        env.close()
+    successful = [e["max_impact"] for e in per_episode if e.get("success") == 1.0]
+    summary = summarize(per_episode)
+    summary["median_max_impact_successful"] = (
+        float(np.median(successful)) if successful else float("nan")
+    )
+    return summary

@@ -194,7 +194,7 @@ class Trainer:
         with timeit("update"):
             metrics = self.rewards.update(self.counters["updates"] + 1)
             batch = self.rb.sample()
-            metrics.update(self.rewards.refresh(batch, self.cfg.learner.gamma))
+            metrics.update(self.rewards.rescore_windows(batch, self.cfg.learner.gamma))
             out = self.learner.update(batch)
             self.rb.update_tensordict_priority(batch)
             if self.beta_schedule is not None:

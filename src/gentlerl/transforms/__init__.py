@@ -12,31 +12,27 @@ Each transform reads a transition's root entries (``s_t``, ``a_t``) and ``"next"
 gentlerl's training loop uses the second form: it applies :attr:`IntrinsicRewards.transform` to each
 collected batch *before* writing it to the n-step replay buffer, because TorchRL's
 ``MultiStepTransform`` sums every reward key over the n steps at write time, so the rewards must
-already be in the transitions. With ``recompute_surprise`` (the default) the penalty surprise is
+already be in the transitions. With ``rescore_surprise`` (the default) the penalty surprise is
 then scored again when a transition is sampled, from the raw steps of its window, with the
 target model of that update (:func:`gentlerl.data.rescore_windows`); the paper's reading
-(``recompute_surprise=false``, the ``paper`` scale) keeps the value scored at collection.
+(``rescore_surprise=false``, the ``paper`` scale) keeps the value scored at collection.
 
 The model-reading transforms (``DynamicsSurprise``, ``PenaltySurprise``, ``ICMReward``) receive
 their model and the parameters to read it with, like TorchRL's ``RNDTransform``; the wiring
-(:mod:`gentlerl.agent`) hands the same model to the ``LossModule`` that trains it, so the
+(:mod:`gentlerl.rewards`) hands the same model to the ``LossModule`` that trains it, so the
 transforms import no loss. ``Transform.clone`` keeps sharing the model. Append them to the
 batched env (``TransformedEnv(ParallelEnv(...), rewards.transform)``), not inside the workers: a
 worker process would hold a copy of the networks that the loss's updates never reach, so a
 model-reading transform refuses to run in another process than the one it was built in.
 
-For an agent with one critic (SAC, TD3, PPO), :class:`SumRewards` sums the components into one
-``reward``, and :class:`FreshRewards` (``IntrinsicRewards.sampling_transform()``) recomputes the
-model-reading rewards of each sampled batch with the current models, then the sum.
-:class:`gentlerl.agent.IntrinsicRewards` builds them for a paper variant.
+A variant's transforms, their models and the single-critic helpers (``SumRewards``,
+``RescoreRewards``) are built by :class:`gentlerl.rewards.IntrinsicRewards`, the drop-in package.
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.calibration import TouchCalibration
-from gentlerl.transforms.fresh import FreshRewards
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty, NonFiniteForceError
-from gentlerl.transforms.sum import SumRewards
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
@@ -47,13 +43,11 @@ __all__ = [
     "ICM",
     "DynamicsSurprise",
     "ForcePenalty",
-    "FreshRewards",
     "ICMReward",
     "ImpactPenalty",
     "NonFiniteForceError",
     "ModelRewardTransform",
     "PenaltySurprise",
-    "SumRewards",
     "TorquePenalty",
     "TouchCalibration",
     "TransitionTransform",

@@ -177,7 +177,7 @@ class ModelRewardTransform(TransitionTransform):
                 f"{type(self).__name__} runs in process {os.getpid()} but its model trains in "
                 f"process {self.owner_pid}: this copy would never see an update. Apply the "
                 "reward transforms in the trainer's process (to collected batches, to the "
-                "batched env outside its workers, or as IntrinsicRewards.sampling_transform())"
+                "batched env outside its workers, or as IntrinsicRewards.rescore_transform())"
             )
 
     def _gate(self, reward: torch.Tensor) -> torch.Tensor:

@@ -4,7 +4,7 @@ The models behind the intrinsic rewards (the penalty and dynamics ensembles, ICM
 step per learner update. On a GPU an eager step is a few hundred small kernels (4.5 ms for the
 paper's penalty ensemble on an H200, against 0.3 ms replayed as a CUDA graph:
 benchmarks/RESULTS.md), so the step follows the learner's ``compile`` / ``cudagraphs`` settings
-(:func:`~gentlerl.agent.learner.compile_step`); on the CPU by default it is the plain step.
+(:func:`~gentlerl.objectives.compile.compile_step`); on the CPU by default it is the plain step.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.objectives import LossModule
 
-from gentlerl.agent.learner import compile_step
+from gentlerl.objectives.compile import compile_step
 
 
 class ModelStep:

@@ -1,12 +1,12 @@
-"""``FreshRewards``: the model-reading rewards recomputed on each sampled batch (a replay-buffer
+"""``RescoreRewards``: the model-reading rewards recomputed on each sampled batch (a replay-buffer
 transform), so that curiosity is scored by the model of the update, not of the collection.
 
 Stored at collection, a surprise reward keeps the verdict of the model of that moment: a bonus for
 a contact the model has learned since never fades. Appended to a TorchRL ``ReplayBuffer``
 (``rb.append_transform(...)``), this transform scores every sampled 1-step transition again with
-the current (target) models and, given a :class:`~gentlerl.transforms.SumRewards`, sums the
+the current (target) models and, given a :class:`~gentlerl.rewards.SumRewards`, sums the
 components again. n-step transitions need each step's window (gentlerl's own loop keeps them, see
-:meth:`gentlerl.agent.IntrinsicRewards.refresh`) and are refused here.
+:meth:`gentlerl.rewards.IntrinsicRewards.rescore_windows`) and are refused here.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from collections.abc import Sequence
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import Transform
 
+from gentlerl.rewards.sum import SumRewards
 from gentlerl.transforms.base import ModelRewardTransform
-from gentlerl.transforms.sum import SumRewards
 
 
-class FreshRewards(Transform):
+class RescoreRewards(Transform):
     """Recomputes ``rewards`` (model-reading transforms, gate included) on each sampled batch.
 
     The transforms are shared, not copied: they keep reading the models (and the reward-delay
@@ -44,7 +44,7 @@ class FreshRewards(Transform):
         steps = tensordict.get("steps_to_next_obs", None)
         if steps is not None and bool((steps > 1).any()):
             raise ValueError(
-                "FreshRewards scores 1-step transitions; this batch holds n-step ones "
+                "RescoreRewards scores 1-step transitions; this batch holds n-step ones "
                 f"(steps_to_next_obs up to {int(steps.max())}), whose rewards are sums over "
                 "steps it does not have: sample 1-step transitions, or use gentlerl's loop"
             )

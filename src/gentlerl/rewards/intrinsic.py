@@ -18,20 +18,16 @@ from torchrl.data import ReplayBuffer
 from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
-from gentlerl.agent.chain import RewardChain
-from gentlerl.agent.model_step import ModelStep
-from gentlerl.agent.specs import env_sizes
-from gentlerl.agent.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.config import GentlenessConfig, check_group
 from gentlerl.data import make_model_buffer, rescore_windows
 from gentlerl.objectives import EnsembleModelLoss
-from gentlerl.transforms import (
-    FreshRewards,
-    ImpactPenalty,
-    ModelRewardTransform,
-    PenaltySurprise,
-    SumRewards,
-)
+from gentlerl.rewards.chain import RewardChain
+from gentlerl.rewards.model_step import ModelStep
+from gentlerl.rewards.rescore import RescoreRewards
+from gentlerl.rewards.specs import env_sizes
+from gentlerl.rewards.sum import SumRewards
+from gentlerl.rewards.variants import COMPONENTS, Ingredients, reward_keys
+from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
 
 if TYPE_CHECKING:
     from torchrl.envs import EnvBase
@@ -55,9 +51,9 @@ class IntrinsicRewards:
     size from an env's specs; ``device`` is where the models and their buffer live; ``compile``
     and ``cudagraphs`` launch each model's step as the learner's is (:class:`ModelStep`).
 
-    With ``settings.recompute_surprise`` (the default), penalty surprise must be scored again
-    when sampled: gentlerl's loop calls :meth:`refresh`; any other pipeline appends
-    :meth:`sampling_transform` to its replay buffer. :meth:`update` raises once the rewards are
+    With ``settings.rescore_surprise`` (the default), penalty surprise must be scored again
+    when sampled: an n-step buffer (gentlerl's loop) calls :meth:`rescore_windows`; a 1-step one
+    appends :meth:`rescore_transform`. :meth:`update` raises once the rewards are
     on if neither ever ran, rather than training on stale curiosity without a word.
     """
 
@@ -86,8 +82,8 @@ class IntrinsicRewards:
             raise ValueError(f"IntrinsicRewards: device must be cpu or cuda, got {self.device}")
         #: Model updates so far (:meth:`update` counts them; the schedule reads it).
         self.num_updates = 0
-        self._sampling: list[FreshRewards] = []
-        self._refreshed = False
+        self._rescorers: list[RescoreRewards] = []
+        self._rescored_windows = False
         self._updates_while_on = 0  # by this object: a resumed run starts again at 0
         ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key, force_key)
         with self.device:
@@ -156,31 +152,31 @@ class IntrinsicRewards:
             device=device,
         )
 
-    def sampling_transform(self, reward_sum: SumRewards | None = None) -> FreshRewards:
+    def rescore_transform(self, reward_sum: SumRewards | None = None) -> RescoreRewards:
         """A replay-buffer transform that scores each sampled batch's curiosity (r^s, r^sp, ICM)
         again with the current models, then sums the components with ``reward_sum``.
 
-        ``rb.append_transform(rewards.sampling_transform(reward_sum))`` on a buffer of 1-step
-        transitions; gentlerl's n-step loop uses :meth:`refresh` instead.
+        ``rb.append_transform(rewards.rescore_transform(reward_sum))`` on a buffer of 1-step
+        transitions; an n-step buffer uses :meth:`rescore_windows` instead.
         """
-        fresh = FreshRewards(self.gated_transforms, reward_sum)
-        self._sampling.append(fresh)
-        return fresh
+        rescorer = RescoreRewards(self.gated_transforms, reward_sum)
+        self._rescorers.append(rescorer)
+        return rescorer
 
-    def _check_fresh(self) -> None:
-        """Refuse a second update with the rewards on if r^sp is to be recomputed at sampling
+    def _check_rescored(self) -> None:
+        """Refuse a second update with the rewards on if r^sp is to be rescored at sampling
         and never was (the first may come before its batch is sampled)."""
-        if not self.recomputed or not self.intrinsic_on:
+        if not self.rescored or not self.intrinsic_on:
             return
         self._updates_while_on += 1
-        if self._updates_while_on < 2 or self._refreshed:
+        if self._updates_while_on < 2 or self._rescored_windows:
             return
-        if any(fresh.reads for fresh in self._sampling):
+        if any(rescorer.reads for rescorer in self._rescorers):
             return
         raise RuntimeError(
-            "recompute_surprise=True, but penalty surprise was never scored again at sampling: "
-            "append rewards.sampling_transform() to the replay buffer (or call refresh() on "
-            "n-step batches), or set GentlenessConfig(recompute_surprise=False)"
+            "rescore_surprise=True, but penalty surprise was never scored again at sampling: "
+            "append rewards.rescore_transform() to the replay buffer (or call rescore_windows() on "
+            "n-step batches), or set GentlenessConfig(rescore_surprise=False)"
         )
 
     @property
@@ -188,21 +184,21 @@ class IntrinsicRewards:
         return [t for t in self.transform if isinstance(t, ModelRewardTransform)]
 
     @property
-    def recomputed(self) -> list[PenaltySurprise]:
-        """The rewards recomputed at sampling (``settings.recompute_surprise``): penalty surprise."""
-        if not self.settings.recompute_surprise:
+    def rescored(self) -> list[PenaltySurprise]:
+        """The rewards scored again at sampling (``settings.rescore_surprise``): penalty surprise."""
+        if not self.settings.rescore_surprise:
             return []
         return [t for t in self.gated_transforms if isinstance(t, PenaltySurprise)]
 
     @property
     def window_keys(self) -> list[NestedKey]:
-        """What the learner's buffer keeps of each window step for :meth:`refresh`."""
+        """What the learner's buffer keeps of each window step for :meth:`rescore_windows`."""
         wanted: list[NestedKey] = []
-        for t in self.recomputed:
+        for t in self.rescored:
             wanted += [t.model.obs_key, t.model.action_key, ("next", t.penalty_key)]
         return list(dict.fromkeys(wanted))
 
-    def refresh(self, batch: TensorDictBase, gamma: float) -> dict[str, float]:
+    def rescore_windows(self, batch: TensorDictBase, gamma: float) -> dict[str, float]:
         r"""Recompute the n-step penalty surprise of a sampled batch with today's target models.
 
         Stored at collection, :math:`r^{s_p}` (eq. 8) would keep the surprise of the model of that
@@ -210,14 +206,14 @@ class IntrinsicRewards:
         transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
         :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
         (:func:`~gentlerl.data.rescore_windows`); ``("next", "penalty_surprise")`` is replaced in
-        place. Returns ``penalty_surprise_per_contact_step``: the mean recomputed :math:`r^{s_p}`
+        place. Returns ``penalty_surprise_per_contact_step``: the mean rescored :math:`r^{s_p}`
         over the window steps with a penalty (absent when the batch has none), the number that
         falls when the model learns what it is paid to be surprised by.
         """
-        if not self.recomputed:
+        if not self.rescored:
             return {}
-        self._refreshed = True
-        return rescore_windows(self.recomputed, batch, gamma, self.device)
+        self._rescored_windows = True
+        return rescore_windows(self.rescored, batch, gamma, self.device)
 
     @property
     def intrinsic_on(self) -> bool:
@@ -243,7 +239,7 @@ class IntrinsicRewards:
                 "IntrinsicRewards.update() before any extend(): the models have no transition to "
                 "learn from (extend() each collected, transformed batch first)"
             )
-        self._check_fresh()
+        self._check_rescored()
         metrics = {}
         b = self.settings.model_batch_size
         for name, loss in self.losses.items():

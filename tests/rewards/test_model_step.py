@@ -3,10 +3,10 @@
 import pytest
 import torch
 
-from gentlerl.agent.learner import compile_unavailable
-from gentlerl.agent.model_step import ModelStep
 from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss
+from gentlerl.objectives.compile import compile_unavailable
+from gentlerl.rewards.model_step import ModelStep
 from tests.test_learner import _batch
 
 
