@@ -11,6 +11,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from gentlerl.config.fields import setting
+from gentlerl.config.gentleness import GentlenessConfig
+from gentlerl.config.limits import (
+    MAX_BATCH,
+    MAX_FRAMES,
+    MAX_HANDS,
+    MAX_THREADS,
+    MAX_TRANSITIONS,
+    MAX_WIDTH,
+)
 
 COLLECTORS = ("single", "multi", "ray")
 #: collector.overlap: none, the next batch on a thread, or in a child process (a rule checks it:
@@ -59,22 +68,6 @@ class EnvConfig:
             return self.force_key
         return "touch" if self.name is None else "force"
 
-
-# Upper bounds of the sizes: far above what any scale uses (the paper's: 1M transitions, 500k
-# frames, 400-unit layers, 5 members), low enough that no single value exhausts a 24 GB machine
-# before it starts (what a value past them would do: allocate until the memory runs out).
-#: env frames of a run (~100 days at 1,000 frames/s).
-MAX_FRAMES = 10**10
-#: transitions a replay buffer keeps (10x the paper's).
-MAX_TRANSITIONS = 10**7
-#: transitions per (model) update.
-MAX_BATCH = 65536
-#: units of a hidden layer (a 4096 x 4096 layer: 64 MiB of float32).
-MAX_WIDTH = 4096
-#: hands stepped together (a batched collector env, one evaluation's episodes).
-MAX_HANDS = 256
-#: torch / physics threads of one process.
-MAX_THREADS = 256
 
 #: Hands per collector env when ``collector.num_envs`` is null (the default) and the env factory
 #: batches: 4 hands share each step's TorchRL and policy overhead (1.35x one hand's collector
@@ -223,63 +216,6 @@ class NetworkConfig:
         "30k fragile from 1.00 to 0.30 (docs/REPRODUCTION.md, ninth amendment)",
         bounds="> 0",
     )
-
-
-@dataclass
-class GentlenessConfig:
-    lam: tuple[float, float] = setting(
-        (2.0, 2.0), "impact acceptability [lambda_1, lambda_2] (eq. 3)"
-    )
-    lam_prime: tuple[float, float] = setting(
-        (2.0, 2.0), "penalty-surprise gate [l'_1, l'_2] (eq. 8)"
-    )
-    reward_delay: int = setting(
-        2_000, "model updates before the curiosity rewards switch on", bounds=">= 0",
-        resumable=True,
-    )  # fmt: skip
-    dynamics_target_period: int = setting(
-        500, "model updates between dynamics target copies", bounds=">= 1", resumable=True
-    )
-    penalty_target_period: int = setting(
-        100, "model updates between penalty target copies", bounds=">= 1", resumable=True
-    )
-    ensemble_size: int = setting(5, "members of each model ensemble", bounds="[1, 32]")
-    model_hidden: int = setting(
-        128, "units of each of the models' 3 hidden layers", bounds=f"[1, {MAX_WIDTH // 2}]"
-    )
-    model_batch_size: int = setting(
-        64, "transitions per ensemble member and model update", bounds=f"[1, {MAX_BATCH}]",
-        resumable=True,
-    )  # fmt: skip
-    model_buffer_size: int = setting(
-        100_000, "1-step transitions kept for the models", bounds=f"[1, {MAX_TRANSITIONS}]"
-    )
-    lr_model: float = setting(1e-3, "Adam step size of the models", bounds="> 0", resumable=True)
-    surprise_scale: float = setting(
-        1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)", bounds=">= 0"
-    )
-    # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
-    # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
-    # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
-    dynamics_surprise_scale: float = setting(
-        0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0"
-    )
-    # Measured (docs/REPRODUCTION.md, fifth amendment): with supports per head and r^sp
-    # recomputed at sampling, the fragile probe ended at 1.00 without a floor and 0.85 with 0;
-    # the NLL of contact steps stayed near +1 at 30k frames either way.
-    surprise_nll_floor: float | None = setting(
-        None, "floor of the penalty-surprise NLL (null: eq. 8)"
-    )
-    surprise_kind: str = setting(
-        "nll",
-        "what r^sp's curiosity reads: nll (eq. 8) or information_gain (the penalty ensemble's "
-        "disagreement, which fades as it learns)",
-        choices=("nll", "information_gain"),
-    )
-    rescore_surprise: bool = setting(
-        True, "recompute r^sp of each sampled n-step transition with the current target model"
-    )
-    icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")
 
 
 @dataclass

@@ -77,12 +77,22 @@ def network_problems(net: NetworkConfig) -> list[str]:
 
 def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
     """Both gates ``[lambda_1, lambda_2]`` of eq. 3 and 8: a positive scale, a non-negative
-    offset."""
-    return [
+    offset; a multiplier needs the tolerance it steers toward, and three PID gains."""
+    problems = [
         f"gentleness.{name}={value} must be [lambda_1 > 0, lambda_2 >= 0]"
         for name, value in (("lam", gentleness.lam), ("lam_prime", gentleness.lam_prime))
         if len(value) != 2 or value[0] <= 0 or value[1] < 0
     ]
+    if gentleness.multiplier != "none" and gentleness.tolerance is None:
+        problems.append(
+            f"gentleness.multiplier={gentleness.multiplier} steers toward the tolerance: set "
+            "gentleness.tolerance (the impact one step may deal, N)"
+        )
+    if len(gentleness.multiplier_gains) != 3:
+        problems.append(
+            f"gentleness.multiplier_gains={gentleness.multiplier_gains} must be [K_P, K_I, K_D]"
+        )
+    return problems
 
 
 def learner_problems(learner: LearnerConfig) -> list[str]:

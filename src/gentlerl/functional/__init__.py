@@ -1,5 +1,11 @@
 """Pure functions for the paper's equations, one each (CONTRIBUTING.md maps the paper's names)."""
 
+from gentlerl.functional.constraint import (
+    normalized_curiosity,
+    pid_lagrangian,
+    running_mean_update,
+    tolerance_unit,
+)
 from gentlerl.functional.distributional import categorical_projection, categorical_support
 from gentlerl.functional.gentleness import (
     acceptability,
@@ -25,6 +31,10 @@ __all__ = [
     "impact_penalty",
     "information_gain",
     "mixture_moments",
+    "normalized_curiosity",
     "penalty_surprise",
+    "pid_lagrangian",
+    "running_mean_update",
+    "tolerance_unit",
     "torque_penalty",
 ]

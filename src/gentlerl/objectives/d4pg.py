@@ -144,6 +144,8 @@ class MultiHeadD4PGLoss(LossModule):
         self.set_keys(rewards=tuple(reward_keys))
         episodic = [k not in non_episodic_keys for k in reward_keys]
         self.register_buffer("episodic", torch.tensor(episodic), persistent=False)
+        # w_k of the actor's objective sum_k w_k Q_k (1: the paper; set_head_weight steers one)
+        self.register_buffer("head_weights", torch.ones(self.num_heads), persistent=False)
         self.use_prioritized_weights = use_prioritized_weights
         self.reduction = "mean"
         self.convert_to_functional(actor_network, "actor_network", create_target_params=delay_actor)
@@ -265,14 +267,20 @@ class MultiHeadD4PGLoss(LossModule):
         )
         logits, atoms = self._critic(actor_td, params["value"].detach())
         q_per_head = (logits.softmax(-1) * atoms).sum(-1)  # [B, K]
-        loss = self._reduce_loss(-q_per_head.sum(-1), tensordict=tensordict, weights=weights)
+        objective = (q_per_head * self.head_weights).sum(-1)
+        loss = self._reduce_loss(-objective, tensordict=tensordict, weights=weights)
         return loss, q_per_head.detach().reshape(-1, self.num_heads).mean(0)
 
     def loss_actor(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
-        """Minus the summed expected return of the K heads at ``(s, pi(s))``, ``{"value": [K]
-        mean expected returns}``."""
+        r"""Minus the weighted sum :math:`\sum_k w_k Q_k(s, \pi(s))` of the K heads (``w`` =
+        :attr:`head_weights`, 1 by default), ``{"value": [K] mean expected returns}``."""
         loss, value = self._actor_terms(tensordict, self.network_params())
         return loss, {"value": value}
+
+    def set_head_weight(self, key: NestedKey, weight: float) -> None:
+        """The weight of ``key``'s head in the actor's objective (in place: a captured graph
+        reads it), e.g. 1 + a Lagrange multiplier on the impact penalty."""
+        self.head_weights[self.reward_keys.index(key)] = float(weight)
 
     def losses(
         self, tensordict: TensorDictBase, params: TensorDictBase

@@ -13,19 +13,19 @@ from typing import TYPE_CHECKING, Any
 
 import torch
 from tensordict import TensorDictBase
-from tensordict.utils import NestedKey
 from torchrl.data import ReplayBuffer
 from torchrl.objectives import HardUpdate
 
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig, check_group
-from gentlerl.data import make_model_buffer, rescore_windows
+from gentlerl.data import make_model_buffer
+from gentlerl.functional import tolerance_unit
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.rewards.chain import RewardChain
 from gentlerl.rewards.model_step import ModelStep
-from gentlerl.rewards.rescore import RescoreRewards
+from gentlerl.rewards.multiplier import ImpactMultiplier
+from gentlerl.rewards.rescore import Rescoring
 from gentlerl.rewards.specs import env_sizes
-from gentlerl.rewards.sum import SumRewards
 from gentlerl.rewards.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
 
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from torchrl.envs import EnvBase
 
 
-class IntrinsicRewards:
+class IntrinsicRewards(Rescoring):
     """The reward transforms of a variant, their models' losses, optimisers, schedule and buffer.
 
     Attributes:
@@ -82,9 +82,7 @@ class IntrinsicRewards:
             raise ValueError(f"IntrinsicRewards: device must be cpu or cuda, got {self.device}")
         #: Model updates so far (:meth:`update` counts them; the schedule reads it).
         self.num_updates = 0
-        self._rescorers: list[RescoreRewards] = []
-        self._rescored_windows = False
-        self._updates_while_on = 0  # by this object: a resumed run starts again at 0
+        self._rescorers, self._rescored_windows, self._updates_while_on = [], False, 0
         ing = Ingredients(obs_dim, action_dim, feature_shapes, settings, seed, obs_key, force_key)
         with self.device:
             self._build(ing)
@@ -93,7 +91,8 @@ class IntrinsicRewards:
         """The transforms, losses, target updaters, optimisers and buffer of the variant."""
         settings, force_key = ing.settings, ing.force_key
         # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
-        transforms: list = [ImpactPenalty(settings.lam, in_keys=[force_key])]
+        unit = 1.0 if settings.tolerance is None else tolerance_unit(settings.tolerance)
+        transforms: list = [ImpactPenalty(settings.lam, unit=unit, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}
         self._updaters: dict[str, HardUpdate] = {}
         for key in self.reward_keys:
@@ -114,6 +113,12 @@ class IntrinsicRewards:
             for name, loss in self.losses.items()
         }
         self.optimizers = {name: step.optimizer for name, step in self._steps.items()}
+        #: The penalty's weight steered toward ``settings.tolerance`` (``multiplier=pid``).
+        self.multiplier = (
+            ImpactMultiplier(settings.tolerance, settings.multiplier_gains)
+            if settings.multiplier == "pid"
+            else None
+        )
         self.buffer: ReplayBuffer | None = (
             make_model_buffer(settings.model_buffer_size, device=self.device)
             if self.losses
@@ -152,68 +157,14 @@ class IntrinsicRewards:
             device=device,
         )
 
-    def rescore_transform(self, reward_sum: SumRewards | None = None) -> RescoreRewards:
-        """A replay-buffer transform that scores each sampled batch's curiosity (r^s, r^sp, ICM)
-        again with the current models, then sums the components with ``reward_sum``.
-
-        ``rb.append_transform(rewards.rescore_transform(reward_sum))`` on a buffer of 1-step
-        transitions; an n-step buffer uses :meth:`rescore_windows` instead.
-        """
-        rescorer = RescoreRewards(self.gated_transforms, reward_sum)
-        self._rescorers.append(rescorer)
-        return rescorer
-
-    def _check_rescored(self) -> None:
-        """Refuse a second update with the rewards on if r^sp is to be rescored at sampling
-        and never was (the first may come before its batch is sampled)."""
-        if not self.rescored or not self.intrinsic_on:
-            return
-        self._updates_while_on += 1
-        if self._updates_while_on < 2 or self._rescored_windows:
-            return
-        if any(rescorer.reads for rescorer in self._rescorers):
-            return
-        raise RuntimeError(
-            "rescore_surprise=True, but penalty surprise was never scored again at sampling: "
-            "append rewards.rescore_transform() to the replay buffer (or call rescore_windows() on "
-            "n-step batches), or set GentlenessConfig(rescore_surprise=False)"
-        )
-
     @property
     def gated_transforms(self) -> list[ModelRewardTransform]:
         return [t for t in self.transform if isinstance(t, ModelRewardTransform)]
 
     @property
-    def rescored(self) -> list[PenaltySurprise]:
-        """The rewards scored again at sampling (``settings.rescore_surprise``): penalty surprise."""
-        if not self.settings.rescore_surprise:
-            return []
-        return [t for t in self.gated_transforms if isinstance(t, PenaltySurprise)]
-
-    @property
-    def window_keys(self) -> list[NestedKey]:
-        """What the learner's buffer keeps of each window step for :meth:`rescore_windows`."""
-        wanted: list[NestedKey] = []
-        for t in self.rescored:
-            wanted += [t.model.obs_key, t.model.action_key, ("next", t.penalty_key)]
-        return list(dict.fromkeys(wanted))
-
-    def rescore_windows(self, batch: TensorDictBase, gamma: float) -> dict[str, float]:
-        r"""Recompute the n-step penalty surprise of a sampled batch with today's target models.
-
-        Stored at collection, :math:`r^{s_p}` (eq. 8) would keep the surprise of the model of that
-        moment: a bonus for a contact the model has learned since never fades. Here each
-        transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
-        :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
-        (:func:`~gentlerl.data.rescore_windows`); ``("next", "penalty_surprise")`` is replaced in
-        place. Returns ``penalty_surprise_per_contact_step``: the mean rescored :math:`r^{s_p}`
-        over the window steps with a penalty (absent when the batch has none), the number that
-        falls when the model learns what it is paid to be surprised by.
-        """
-        if not self.rescored:
-            return {}
-        self._rescored_windows = True
-        return rescore_windows(self.rescored, batch, gamma, self.device)
+    def _normalized(self) -> list[PenaltySurprise]:
+        """The penalty surprises whose curiosity is normalised (``settings.curiosity_norm``)."""
+        return [t for t in self.gated_transforms if getattr(t, "normalize", False)]
 
     @property
     def intrinsic_on(self) -> bool:
@@ -275,6 +226,8 @@ class IntrinsicRewards:
             "active": self.intrinsic_on,
             "target_counters": {name: u.counter for name, u in self._updaters.items()},
             "num_updates": self.num_updates,
+            "curiosity_scales": [list(t.curiosity_scale) for t in self._normalized],
+            "multiplier": self.multiplier.state_dict() if self.multiplier else None,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -286,3 +239,9 @@ class IntrinsicRewards:
         for name, counter in state["target_counters"].items():
             self._updaters[name].counter = counter
         self.num_updates = int(state.get("num_updates", 0))  # absent before the count was kept
+        for t, (mean, count) in zip(  # [] in checkpoints before curiosity_norm
+            self._normalized, state.get("curiosity_scales", []), strict=False
+        ):
+            t.curiosity_scale = (float(mean), int(count))
+        if self.multiplier is not None and state.get("multiplier") is not None:
+            self.multiplier.load_state_dict(state["multiplier"])

@@ -12,12 +12,19 @@ components again. n-step transitions need each step's window (gentlerl's own loo
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
+import torch
 from tensordict import TensorDictBase
+from tensordict.utils import NestedKey
 from torchrl.envs.transforms import Transform
 
+from gentlerl.data import rescore_windows
 from gentlerl.rewards.sum import SumRewards
-from gentlerl.transforms.base import ModelRewardTransform
+from gentlerl.transforms import ModelRewardTransform, PenaltySurprise
+
+if TYPE_CHECKING:
+    from gentlerl.config import GentlenessConfig
 
 
 class RescoreRewards(Transform):
@@ -54,3 +61,79 @@ class RescoreRewards(Transform):
             self.reward_sum(tensordict)
         self.reads += 1
         return tensordict
+
+
+class Rescoring:
+    """The one verb "rescore" of :class:`~gentlerl.rewards.IntrinsicRewards`: the curiosity scored
+    again at sampling by a 1-step buffer's :meth:`rescore_transform` or an n-step buffer's
+    :meth:`rescore_windows`, and the guard that refuses to train on stale curiosity when neither
+    ever ran. The owner sets ``_rescorers``, ``_rescored_windows``, ``_updates_while_on`` and has
+    ``settings``, ``device``, ``gated_transforms`` and ``intrinsic_on``.
+    """
+
+    settings: GentlenessConfig
+    device: torch.device
+    gated_transforms: list[ModelRewardTransform]
+    intrinsic_on: bool
+    _rescorers: list[RescoreRewards]
+    _rescored_windows: bool
+    _updates_while_on: int  # by this object: a resumed run starts again at 0
+
+    def rescore_transform(self, reward_sum: SumRewards | None = None) -> RescoreRewards:
+        """A replay-buffer transform that scores each sampled batch's curiosity (r^s, r^sp, ICM)
+        again with the current models, then sums the components with ``reward_sum``.
+
+        ``rb.append_transform(rewards.rescore_transform(reward_sum))`` on a buffer of 1-step
+        transitions; an n-step buffer uses :meth:`rescore_windows` instead.
+        """
+        rescorer = RescoreRewards(self.gated_transforms, reward_sum)
+        self._rescorers.append(rescorer)
+        return rescorer
+
+    def _check_rescored(self) -> None:
+        """Refuse a second update with the rewards on if r^sp is to be rescored at sampling
+        and never was (the first may come before its batch is sampled)."""
+        if not self.rescored or not self.intrinsic_on:
+            return
+        self._updates_while_on += 1
+        if self._updates_while_on < 2 or self._rescored_windows:
+            return
+        if any(rescorer.reads for rescorer in self._rescorers):
+            return
+        raise RuntimeError(
+            "rescore_surprise=True, but penalty surprise was never scored again at sampling: "
+            "append rewards.rescore_transform() to the replay buffer (or call rescore_windows() on "
+            "n-step batches), or set GentlenessConfig(rescore_surprise=False)"
+        )
+
+    @property
+    def rescored(self) -> list[PenaltySurprise]:
+        """The rewards scored again at sampling (``settings.rescore_surprise``): penalty surprise."""
+        if not self.settings.rescore_surprise:
+            return []
+        return [t for t in self.gated_transforms if isinstance(t, PenaltySurprise)]
+
+    @property
+    def window_keys(self) -> list[NestedKey]:
+        """What the learner's buffer keeps of each window step for :meth:`rescore_windows`."""
+        wanted: list[NestedKey] = []
+        for t in self.rescored:
+            wanted += [t.model.obs_key, t.model.action_key, ("next", t.penalty_key)]
+        return list(dict.fromkeys(wanted))
+
+    def rescore_windows(self, batch: TensorDictBase, gamma: float) -> dict[str, float]:
+        r"""Recompute the n-step penalty surprise of a sampled batch with today's target models.
+
+        Stored at collection, :math:`r^{s_p}` (eq. 8) would keep the surprise of the model of that
+        moment: a bonus for a contact the model has learned since never fades. Here each
+        transition's window of raw steps (``"window"``, written by the ``NStepWriter`` with
+        :attr:`window_keys`) is scored again and summed as ``MultiStepTransform`` summed it
+        (:func:`~gentlerl.data.rescore_windows`); ``("next", "penalty_surprise")`` is replaced in
+        place. Returns ``penalty_surprise_per_contact_step``: the mean rescored :math:`r^{s_p}`
+        over the window steps with a penalty (absent when the batch has none), the number that
+        falls when the model learns what it is paid to be surprised by.
+        """
+        if not self.rescored:
+            return {}
+        self._rescored_windows = True
+        return rescore_windows(self.rescored, batch, gamma, self.device)

@@ -133,6 +133,7 @@ def _penalty_surprise(ing: Ingredients) -> Part:
         scale=s.surprise_scale,
         nll_floor=s.surprise_nll_floor,
         kind=s.surprise_kind,
+        normalize=s.curiosity_norm,
     )
     return Part(transform, loss, updater)
 

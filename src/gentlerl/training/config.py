@@ -226,10 +226,16 @@ def _resume_problems(cfg: TrainConfig) -> list[str]:
 
 
 def _run_problems(cfg: TrainConfig) -> list[str]:
-    """A seed numpy takes and a run directory that can be one (:func:`run_dir_problem`)."""
+    """A seed numpy takes, a run directory that can be one (:func:`run_dir_problem`), and a
+    penalty head for ``gentleness.multiplier`` to weigh."""
     problems = []
     if not 0 <= cfg.seed < 2**32:
         problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
+    if cfg.gentleness.multiplier != "none" and "penalty" not in cfg.reward_keys:
+        problems.append(
+            f"gentleness.multiplier={cfg.gentleness.multiplier} weighs the penalty head, which "
+            f"variant={cfg.variant} lacks (use a variant with rf)"
+        )
     problem = run_dir_problem(cfg.run_dir)
     return problems + ([problem] if problem else [])
 

@@ -11,7 +11,6 @@ start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections import defaultdict
 from typing import Any
@@ -21,10 +20,10 @@ from tensordict import TensorDictBase
 from torchrl import timeit
 from torchrl.envs import EnvBase
 
-from gentlerl.agent.learner import TrainingState
+from gentlerl import keys
 from gentlerl.config.layout import RunLayout
 from gentlerl.files import write_atomic
-from gentlerl.training import guards
+from gentlerl.training import guards, run_state
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
@@ -37,11 +36,7 @@ from gentlerl.training.builders import (
     write_config,
 )
 from gentlerl.training.checkpoint import (
-    check_critic_supports,
-    critic_supports,
-    load_replay_buffer_state,
     remove_stale_temp_files,
-    replay_buffer_state,
     save_checkpoint,
 )
 from gentlerl.training.config import TrainConfig, validate
@@ -50,7 +45,6 @@ from gentlerl.training.env_probe import probe_env
 from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
-from gentlerl.training.seeding import rng_state, set_rng_state
 
 
 class Trainer:
@@ -131,8 +125,10 @@ class Trainer:
         start, wall = time.perf_counter(), self.wall_s  # resumed: the time before it too
         for batch in collector:
             batch = self._rewarded(batch)
-            for episode in progress.finished_episodes(batch):
+            episodes = progress.finished_episodes(batch)
+            for episode in episodes:
                 logger.log({f"episode/{k}": v for k, v in episode.items()}, c["frames"])
+            self._steer(episodes, logger)
             self._store(batch)
             if self._learning():
                 self._earn_updates(batch.numel(), pending)
@@ -156,6 +152,17 @@ class Trainer:
         guards.check_rewards(batch, self.rewards.reward_keys, frames, checkpoint)
         self.counters["frames"] += batch.numel()
         return batch
+
+    def _steer(self, episodes: list[dict[str, float]], logger: RunLogger) -> None:
+        """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``)."""
+        multiplier = self.rewards.multiplier
+        if multiplier is None or not episodes:
+            return
+        weight = multiplier.observe(e["max_impact"] for e in episodes)
+        self.learner.loss.set_head_weight(keys.PENALTY, weight)
+        logger.log(
+            {f"train/{k}": v for k, v in multiplier.scalars().items()}, self.counters["frames"]
+        )
 
     def _store(self, batch: TensorDictBase) -> None:
         """The models' buffer (1-step transitions) and the learner's (through the n-step writer)."""
@@ -250,50 +257,14 @@ class Trainer:
 
     # -- state ---------------------------------------------------------------------------
     def _policy_state(self) -> dict[str, Any]:
-        """What :func:`~gentlerl.training.checkpoint.load_policy` reads: config, sizes, actor."""
-        return {
-            "config": self.cfg.to_dict(),
-            "obs_dim": self.builder.obs_dim,
-            "action_dim": self.builder.action_dim,
-            "actor": self.learner.policy.state_dict(),
-        }
+        return run_state.policy_state(self)
 
     def state_dict(self) -> dict[str, Any]:
-        """Everything a resumed run needs; the replay buffers only with ``checkpoint_buffer``."""
-        keep = self.cfg.logging.checkpoint_buffer
-        buffer = self.rewards.buffer if keep else None
-        return {
-            **self._policy_state(),
-            "learner": dataclasses.asdict(self.learner.state),
-            "supports": critic_supports(self.learner.loss.value_network),
-            "intrinsic": self.rewards.state_dict(),
-            "rb": replay_buffer_state(self.rb) if keep else None,
-            "nstep": self.writer.state_dict() if keep else None,
-            "model_rb": replay_buffer_state(buffer) if buffer is not None else None,
-            "beta_schedule": self.beta_schedule.state_dict() if self.beta_schedule else None,
-            "counters": dict(self.counters),
-            "wall_s": self.wall_s,
-            "eval_history": list(self.eval_history),
-            "best_eval": self.best_eval,
-            "rng": rng_state(),
-        }
+        """Everything a resumed run needs (:func:`~gentlerl.training.run_state.trainer_state`)."""
+        return run_state.trainer_state(self)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        check_critic_supports(state, self.learner.loss.value_network, self.layout.checkpoint)
-        self.learner.restore(TrainingState(**state["learner"]))
-        self.rewards.load_state_dict(state["intrinsic"])
-        if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
-            load_replay_buffer_state(self.rb, state["rb"], self.layout.checkpoint)
-            self.writer.load_state_dict(state["nstep"])
-        if self.rewards.buffer is not None and state["model_rb"] is not None:
-            load_replay_buffer_state(self.rewards.buffer, state["model_rb"], self.layout.checkpoint)
-        if self.beta_schedule is not None:
-            self.beta_schedule.load_state_dict(state["beta_schedule"])
-        self.counters = guards.checked_counters(state["counters"], self.layout.checkpoint)
-        self.wall_s = float(state.get("wall_s", 0.0))  # absent in checkpoints before it
-        self.eval_history = list(state["eval_history"])
-        self.best_eval = state["best_eval"]
-        set_rng_state(state["rng"])
+        run_state.load_trainer_state(self, state)
 
     def save(self) -> None:
         save_checkpoint(self.layout.checkpoint, self.state_dict())

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
 from tensordict import TensorDictBase
 from torchrl.data import Composite
@@ -21,6 +23,9 @@ class ImpactPenalty(TransitionTransform):
 
     Args:
         lam: :math:`\lambda = [\lambda_1, \lambda_2]` of the acceptability sigmoid (paper: [2, 2]).
+        unit: the force unit :math:`u` the penalty reads impacts in, :math:`r^f` of
+            :math:`m / u` (1: newtons, the paper; the tolerance rule's
+            :func:`~gentlerl.functional.tolerance_unit`). ``impact`` is written in N either way.
         in_keys: ``[force_key]``; out_keys: ``[impact_key, penalty_key]``.
 
     Examples:
@@ -38,6 +43,7 @@ class ImpactPenalty(TransitionTransform):
         self,
         lam: tuple[float, float] = (2.0, 2.0),
         *,
+        unit: float = 1.0,
         in_keys: list[str] | None = None,
         out_keys: list[str] | None = None,
     ) -> None:
@@ -49,6 +55,9 @@ class ImpactPenalty(TransitionTransform):
                 f"{in_keys}, out_keys={out_keys}"
             )
         self.lam = check_lam("ImpactPenalty", lam)
+        if not (math.isfinite(unit) and unit > 0):
+            raise ValueError(f"ImpactPenalty: unit must be a finite force > 0, got {unit!r}")
+        self.unit = float(unit)
         super().__init__(in_keys=in_keys, out_keys=out_keys)
         self.scalar_out_keys = (out_keys[1],)
 
@@ -75,7 +84,7 @@ class ImpactPenalty(TransitionTransform):
             _check_force(self.in_keys[0], force, "s_t")
             _check_force(self.in_keys[0], next_force, "s_t+1")
         m = impact(force, next_force)
-        penalty = impact_penalty(m, *self.lam).unsqueeze(-1)
+        penalty = impact_penalty(m / self.unit, *self.lam).unsqueeze(-1)
         if not bool(torch.isfinite(penalty).all()):  # finite forces whose impacts overflow
             raise NonFiniteForceError(
                 f"ImpactPenalty: {self.in_keys[0]!r} forces up to {next_force.abs().max().item():.3g}"

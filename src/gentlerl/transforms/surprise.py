@@ -21,7 +21,9 @@ from gentlerl.functional import (
     gaussian_nll_parts,
     information_gain,
     mixture_moments,
+    normalized_curiosity,
     penalty_surprise,
+    running_mean_update,
 )
 from gentlerl.transforms.base import ModelRewardTransform
 
@@ -97,6 +99,11 @@ class PenaltySurprise(ModelRewardTransform):
             place (beyond the paper: the NLL of a wide or over-sure but unanimous model does not
             fade as the model learns, docs/REPRODUCTION.md; the disagreement does). The refund
             :math:`-a' r^f` is kept either way; ``nll_floor`` applies to ``"nll"`` only.
+        normalize: divide the curiosity by its running mean magnitude over the contact steps
+            scored so far (:func:`~gentlerl.functional.running_mean_update`,
+            :func:`~gentlerl.functional.normalized_curiosity`; Method III), so that it pays
+            about 1 per contact step on every env; :attr:`curiosity_scale` holds
+            ``(mean, count)`` (checkpointed by ``IntrinsicRewards``).
     """
 
     def __init__(
@@ -108,6 +115,7 @@ class PenaltySurprise(ModelRewardTransform):
         scale: float = 1.0,
         nll_floor: float | None = None,
         kind: str = "nll",
+        normalize: bool = False,
         penalty_key: str = keys.PENALTY,
         out_key: str = keys.PENALTY_SURPRISE,
     ) -> None:
@@ -124,6 +132,9 @@ class PenaltySurprise(ModelRewardTransform):
         self.lam_prime = (float(lam_prime[0]), float(lam_prime[1]))
         self.nll_floor = nll_floor
         self.kind = kind
+        self.normalize = normalize
+        #: The curiosity's running mean magnitude on contact steps and the batches it averages.
+        self.curiosity_scale: tuple[float, int] = (0.0, 0)
 
     def _curiosity(
         self, penalty: torch.Tensor, mean: torch.Tensor, var: torch.Tensor
@@ -135,6 +146,17 @@ class PenaltySurprise(ModelRewardTransform):
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         nll = gaussian_nll(penalty, mu, sigma2)
         return nll if self.nll_floor is None else nll.clamp_min(self.nll_floor)
+
+    def _normalized(self, curiosity: torch.Tensor, learn: bool) -> torch.Tensor:
+        """``curiosity`` in units of its running scale (with :attr:`normalize`); ``learn``: first
+        fold this batch's mean magnitude (finite contact rows) into the scale."""
+        if not self.normalize:
+            return curiosity
+        finite = curiosity[torch.isfinite(curiosity)]
+        if learn and finite.numel():
+            mean, count = self.curiosity_scale
+            self.curiosity_scale = running_mean_update(mean, count, finite.abs().mean().item())
+        return normalized_curiosity(curiosity, self.curiosity_scale[0])
 
     def compute(
         self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
@@ -159,7 +181,7 @@ class PenaltySurprise(ModelRewardTransform):
             model_in = tensordict.select(self.model.obs_key, self.model.action_key)
             mean, var = self.predict(model_in.reshape(-1)[index])
             hit = flat[index].unsqueeze(-1)
-            curiosity = self._curiosity(hit, mean, var)
+            curiosity = self._normalized(self._curiosity(hit, mean, var), learn=True)
             values = penalty_surprise(hit, self.nll_scale * curiosity, *self.lam_prime)
             surprise[index] = values.squeeze(-1)
         return {self.out_keys[0]: self._gate(surprise.reshape(penalty.shape))}
@@ -180,7 +202,7 @@ class PenaltySurprise(ModelRewardTransform):
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         spread, error = gaussian_nll_parts(penalty, mu, sigma2)
         weight = acceptability(-penalty, *self.lam_prime)
-        curiosity = self._curiosity(penalty, mean, var)
+        curiosity = self._normalized(self._curiosity(penalty, mean, var), learn=False)
         return {
             "penalty": penalty,
             "a_prime": weight,

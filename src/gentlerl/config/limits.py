@@ -1,0 +1,17 @@
+"""Upper bounds of the sizes a config may ask for (each group's ``bounds`` read them)."""
+
+# Upper bounds of the sizes: far above what any scale uses (the paper's: 1M transitions, 500k
+# frames, 400-unit layers, 5 members), low enough that no single value exhausts a 24 GB machine
+# before it starts (what a value past them would do: allocate until the memory runs out).
+#: env frames of a run (~100 days at 1,000 frames/s).
+MAX_FRAMES = 10**10
+#: transitions a replay buffer keeps (10x the paper's).
+MAX_TRANSITIONS = 10**7
+#: transitions per (model) update.
+MAX_BATCH = 65536
+#: units of a hidden layer (a 4096 x 4096 layer: 64 MiB of float32).
+MAX_WIDTH = 4096
+#: hands stepped together (a batched collector env, one evaluation's episodes).
+MAX_HANDS = 256
+#: torch / physics threads of one process.
+MAX_THREADS = 256

@@ -1,0 +1,89 @@
+r"""Gentleness from one stated tolerance (beyond the paper): the tolerance rule, the normalised
+curiosity and the PID Lagrange multiplier, one function each.
+
+The paper's :math:`\lambda` (eqs. 3-4) and :math:`\lambda'` (eq. 8) are in the newtons of the hand's
+fingertips, and it notes that :math:`\lambda'` "may be adjusted dynamically during learning". Here a
+user states one number, the tolerance :math:`T`: the impact (eq. 1) one step may deal, in the unit
+the rewards read. Everything else follows from it by these rules, written before any run
+(docs/GENTLEBENCH.md, Method III amendment).
+"""
+
+from __future__ import annotations
+
+import math
+
+#: The paper's :math:`\lambda_2` (N): the impact its acceptability sigmoid (eq. 3) puts at 1/2.
+PAPER_LAMBDA_2 = 2.0
+
+
+def tolerance_unit(tolerance: float, lam2: float = PAPER_LAMBDA_2) -> float:
+    r"""The force unit :math:`u = T / \lambda_2` in which the penalty reads impacts (tolerance rule).
+
+    Eq. 4 is applied to :math:`\tilde m = m / u`, so an impact at the tolerance costs what the
+    paper's :math:`\lambda_2 = 2` N costs on the hand (:math:`r^f = -1`), on every env, and
+    :math:`\lambda'` (eq. 8, which reads the penalty) keeps the paper's values. The hand at
+    :math:`T = 2` N is the paper unchanged (:math:`u = 1`).
+
+    Example: a finger whose tolerance is 20 N reads impacts in units of 10 N.
+    """
+    if not (math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be a finite impact > 0 (N), got {tolerance!r}")
+    if not lam2 > 0:
+        raise ValueError(f"lam2 must be > 0, got {lam2!r}")
+    return tolerance / lam2
+
+
+def running_mean_update(
+    mean: float, count: int, batch_mean: float, min_rate: float = 0.01
+) -> tuple[float, int]:
+    r"""One step of the curiosity's running scale: :math:`s_k = s_{k-1} + \alpha_k (x_k - s_{k-1})`,
+    :math:`\alpha_k = \max(1/k, \alpha_{\min})`.
+
+    The plain mean of the first :math:`1/\alpha_{\min}` batches, then an exponential average that
+    follows the model as it learns (as TorchRL's RND normalises its intrinsic reward by running
+    statistics). ``x_k``: the batch's mean :math:`|\mathrm{nll}|` over its contact steps.
+    Returns ``(s_k, k)``.
+    """
+    if not 0 < min_rate <= 1:
+        raise ValueError(f"min_rate must be in (0, 1], got {min_rate}")
+    count += 1
+    rate = max(1.0 / count, min_rate)
+    return mean + rate * (batch_mean - mean), count
+
+
+def normalized_curiosity(nll: float, scale: float, eps: float = 1e-6) -> float:
+    r"""The curiosity of eq. 8 in units of its running scale, :math:`\mathrm{nll} / \max(s, \epsilon)`.
+
+    Off the hand the penalty model's NLL pays 3-60 per contact step (the hand: 1-2, measured,
+    docs/GENTLEBENCH.md); divided by its own running mean magnitude on contact steps it pays
+    about 1 on every env, so the curiosity cannot outbid the penalty by the env's scale alone.
+    Works on floats and tensors alike.
+    """
+    return nll / max(scale, eps)
+
+
+def pid_lagrangian(
+    cost: float,
+    limit: float,
+    integral: float,
+    previous_cost: float,
+    gains: tuple[float, float, float],
+) -> tuple[float, float]:
+    r"""One update of the PID Lagrange multiplier (Stooke, Achiam and Abbeel 2020, Alg. 2).
+
+    .. math::
+        e_k = J_k - d, \quad I_k = \max(0, I_{k-1} + K_I e_k), \quad
+        \mu_k = \max\bigl(0,\; K_P e_k + I_k + K_D \max(0, J_k - J_{k-1})\bigr)
+
+    ``cost`` :math:`J_k` and ``limit`` :math:`d` in one unit (here the episodes' max impact in
+    tolerances, :math:`d = 1`); ``gains`` :math:`(K_P, K_I, K_D)`. The integral only grows
+    while the cost is above its limit and is never negative (no wind-up below zero), the
+    derivative term acts only on a rising cost. Returns ``(mu_k, I_k)``.
+    """
+    kp, ki, kd = gains
+    if min(gains) < 0:
+        raise ValueError(f"PID gains must be >= 0, got {gains}")
+    error = cost - limit
+    integral = max(0.0, integral + ki * error)
+    multiplier = max(0.0, kp * error + integral + kd * max(0.0, cost - previous_cost))
+    return multiplier, integral

@@ -1,0 +1,65 @@
+"""The Method III equations, each against numbers computed by hand."""
+
+import math
+
+import pytest
+import torch
+
+from gentlerl.functional import (
+    impact_penalty,
+    normalized_curiosity,
+    pid_lagrangian,
+    running_mean_update,
+    tolerance_unit,
+)
+
+
+def test_the_tolerance_rule_reads_impacts_in_units_of_half_the_tolerance():
+    assert tolerance_unit(2.0) == 1.0  # the paper's hand: unchanged
+    assert tolerance_unit(20.0) == 10.0
+    # An impact at the tolerance costs -1 on every env: (1 - sigmoid(0)) * 2.
+    for tolerance in (2.0, 20.0, 300.0):
+        m = torch.tensor([tolerance]) / tolerance_unit(tolerance)
+        assert impact_penalty(m).item() == pytest.approx(-1.0)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.inf, math.nan])
+def test_the_tolerance_rule_refuses_a_tolerance_that_is_not_a_positive_impact(bad):
+    with pytest.raises(ValueError, match="tolerance must be a finite impact > 0"):
+        tolerance_unit(bad)
+
+
+def test_the_running_scale_is_the_plain_mean_then_an_exponential_average():
+    mean, count = 0.0, 0
+    for x in (4.0, 2.0, 6.0):  # 1/k rates: the plain mean, 4.0
+        mean, count = running_mean_update(mean, count, x, min_rate=0.25)
+    assert (mean, count) == (pytest.approx(4.0), 3)
+    mean, count = running_mean_update(mean, count, 8.0, min_rate=0.25)  # rate 1/4 = min
+    assert mean == pytest.approx(5.0)  # 4 + (8 - 4) / 4
+    mean, count = running_mean_update(mean, count, 0.0, min_rate=0.25)  # rate stays 1/4
+    assert mean == pytest.approx(3.75)  # 5 - 5 / 4
+
+
+def test_normalized_curiosity_divides_by_the_running_scale_floored():
+    assert normalized_curiosity(30.0, 15.0) == pytest.approx(2.0)
+    assert normalized_curiosity(torch.tensor([-3.0]), 1.5).item() == pytest.approx(-2.0)
+    assert normalized_curiosity(1.0, 0.0, eps=0.5) == pytest.approx(2.0)
+
+
+def test_the_pid_multiplier_by_hand():
+    gains = (1.0, 0.1, 0.5)
+    # cost 3 against a limit of 1: e = 2, I = 0.2, derivative on the rise 3 - 1 = 2.
+    mu, integral = pid_lagrangian(3.0, 1.0, 0.0, 1.0, gains)
+    assert integral == pytest.approx(0.2) and mu == pytest.approx(2.0 + 0.2 + 1.0)
+    # cost falls to 0.5: e = -0.5, I = 0.15, no derivative on a fall, mu = max(0, -0.35).
+    mu, integral = pid_lagrangian(0.5, 1.0, integral, 3.0, gains)
+    assert integral == pytest.approx(0.15) and mu == 0.0
+    # a long stretch below the limit drains the integral to 0, never below
+    for _ in range(2):  # 0.15 - 0.1 = 0.05, then max(0, 0.05 - 0.1) = 0
+        mu, integral = pid_lagrangian(0.0, 1.0, integral, 0.5, gains)
+    assert integral == 0.0 and mu == 0.0
+
+
+def test_the_pid_multiplier_refuses_a_negative_gain():
+    with pytest.raises(ValueError, match="gains must be >= 0"):
+        pid_lagrangian(1.0, 1.0, 0.0, 1.0, (1.0, -0.1, 0.0))

@@ -1,0 +1,99 @@
+"""Method III on the drop-in surface: the tolerance rule in ImpactPenalty, the normalised
+curiosity in PenaltySurprise, the impact multiplier, the weighted actor objective, and a run
+that steers and resumes its multiplier."""
+
+import math
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from gentlerl import keys
+from gentlerl.config import GentlenessConfig
+from gentlerl.functional import gaussian_nll, mixture_moments
+from gentlerl.rewards import IntrinsicRewards
+from gentlerl.rewards.multiplier import ImpactMultiplier
+from gentlerl.transforms import ImpactPenalty
+from tests.test_transforms import _pressing_rollout
+from tests.toy_env import ToyHandEnv
+
+
+def _press(newtons: float) -> TensorDict:
+    nxt = torch.zeros(5, 3)
+    nxt[0, 0] = newtons
+    return TensorDict({keys.TOUCH: torch.zeros(5, 3), "next": {keys.TOUCH: nxt}})
+
+
+@pytest.mark.parametrize("tolerance", [2.0, 20.0, 300.0])
+def test_an_impact_at_the_tolerance_costs_minus_one_and_is_written_in_newtons(tolerance):
+    out = IntrinsicRewards(
+        "r+rf", GentlenessConfig(tolerance=tolerance), obs_dim=1, action_dim=1, feature_shapes={}
+    ).transform[0](_press(tolerance))
+    assert out["next", keys.IMPACT][0].item() == pytest.approx(tolerance)  # N, not units
+    assert out["next", keys.PENALTY].item() == pytest.approx(-1.0)
+
+
+def test_the_paper_hand_is_the_tolerance_rule_at_two_newtons():
+    for newtons in (0.5, 1.0, 3.0, 7.0):
+        paper = ImpactPenalty()(_press(newtons))["next", keys.PENALTY]
+        ruled = ImpactPenalty(unit=1.0)(_press(newtons))["next", keys.PENALTY]
+        assert torch.equal(paper, ruled)
+    with pytest.raises(ValueError, match="unit must be a finite force > 0"):
+        ImpactPenalty(unit=0.0)
+
+
+def test_normalised_curiosity_is_the_nll_over_its_running_mean_on_contact_steps():
+    settings = dict(model_hidden=16, ensemble_size=3, reward_delay=0)
+    rewards = IntrinsicRewards.from_env(
+        ToyHandEnv(), "r+rf+rsp", GentlenessConfig(curiosity_norm=True, **settings)
+    )
+    rewards.step(1)  # the rewards on
+    rsp = rewards.transform[1]
+    batch = _pressing_rollout(ToyHandEnv())
+    penalty = rewards.transform[0](batch.clone())["next", keys.PENALTY]
+    contact = penalty.squeeze(-1) < 0
+    assert contact.any() and not contact.all()
+    mean, var = rsp.predict(batch[contact].select(keys.OBSERVATION, keys.ACTION))
+    mu, sigma2 = mixture_moments(mean, var, dim=0)
+    nll = gaussian_nll(penalty[contact], mu, sigma2)
+    scored = rewards.transform(batch.clone())
+    assert rsp.curiosity_scale == (pytest.approx(nll.abs().mean().item(), rel=1e-5), 1)
+    a_prime = torch.sigmoid(2.0 * (2.0 + penalty[contact]))  # lam' = [2, 2] on |r^f|
+    expected = a_prime * (nll / nll.abs().mean() - penalty[contact])
+    torch.testing.assert_close(scored["next", keys.PENALTY_SURPRISE][contact], expected)
+    # the scale is saved and restored with the rewards' state
+    state = rewards.state_dict()
+    again = IntrinsicRewards.from_env(
+        ToyHandEnv(), "r+rf+rsp", GentlenessConfig(curiosity_norm=True, **settings)
+    )
+    again.load_state_dict(state)
+    assert again.transform[1].curiosity_scale == rsp.curiosity_scale
+
+
+def test_the_multiplier_by_hand():
+    """T = 2 N, gains (1, 0.1, 0), window 2: each episode's cost is the window's median / T."""
+    m = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=2)
+    assert m.weight == 1.0  # the paper until an episode ends
+    assert m.observe([6.0]) == pytest.approx(1.0 + 2.0 + 0.2)  # J = 3, e = 2, I = 0.2
+    assert m.observe([2.0]) == pytest.approx(1.0 + 1.0 + 0.3)  # J = median(6, 2)/2 = 2: e = 1
+    # J = median(2, 1)/2 = 0.75: I = 0.275, mu = 0.025; then J = 0.5: I = 0.225, mu = 0
+    assert m.observe([1.0, 1.0]) == pytest.approx(1.0 + 0.0)
+    assert m.integral == pytest.approx(0.225) and m.scalars()["impact_cost"] == 0.5
+    restored = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=2)
+    restored.load_state_dict(m.state_dict())
+    assert restored.observe([8.0]) == m.observe([8.0])
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        m.observe([math.nan])
+
+
+def test_the_actor_maximises_the_weighted_sum_of_its_heads():
+    from tests.test_learner import _batch, _learner  # a 2-head D4PG loss and its batch
+
+    loss, batch = _learner().loss, _batch()
+    plain = loss(batch.clone())
+    loss.set_head_weight("penalty", 3.0)
+    weighted = loss(batch.clone())["loss_actor"]
+    # -(Q_r + 3 Q_f) = -(Q_r + Q_f) - 2 Q_f, Q_f averaged over the batch as the loss is
+    expected = plain["loss_actor"] - 2.0 * plain["value_penalty"]
+    torch.testing.assert_close(weighted, expected, rtol=1e-5, atol=1e-5)
+    assert loss.head_weights.tolist() == [1.0, 3.0]
