@@ -196,7 +196,7 @@ def test_resume_to_a_longer_run_keeps_every_transition(tmp_path):
 def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     run_dir = tmp_path / "run"
     command = [
-        sys.executable, str(ROOT / "recipes" / "train.py"), "task=touch", "variant=r+rf",
+        sys.executable, "-m", "gentlerl", "train", "task=touch", "variant=r+rf",
         f"run_dir={run_dir}", "collector.total_frames=1600", "collector.frames_per_batch=100",
         "collector.init_random_frames=100", "logging.checkpoint_every_frames=300",
         "logging.eval_every_frames=100000", "logging.eval_episodes=1", "replay.batch_size=16",

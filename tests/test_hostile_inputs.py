@@ -451,7 +451,7 @@ def _fake_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000,0
     ],
 )
 def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content, match):
-    from gentlerl.analysis.figures import main as plot
+    from gentlerl.apps.plot import main as plot
 
     run = _fake_run(tmp_path / "runs")
     (run / file).write_text(content)
@@ -461,7 +461,7 @@ def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content,
 
 
 def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsys):
-    from gentlerl.analysis.figures import main as plot
+    from gentlerl.apps.plot import main as plot
 
     _fake_run(tmp_path / "runs", seed=0, scalars=None)
     with pytest.raises(FileNotFoundError, match="none of the 1 run"):
@@ -485,7 +485,7 @@ def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsy
     ],
 )
 def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
-    from gentlerl.analysis.claims import main as claims
+    from gentlerl.apps.claims import main as claims
 
     evals = tmp_path / "evals" / "sweep"
     evals.mkdir(parents=True)
@@ -496,7 +496,7 @@ def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
 
 
 def test_claims_refuses_a_missing_final_evals_folder(tmp_path):
-    from gentlerl.analysis.claims import main as claims
+    from gentlerl.apps.claims import main as claims
 
     _fake_run(tmp_path / "runs")
     for folder in (tmp_path / "nonexistent", tmp_path / "runs"):

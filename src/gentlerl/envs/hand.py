@@ -27,7 +27,7 @@ BLOCK_NORMAL = (0.0, float(np.sin(0.75)), float(np.cos(0.75)))
 
 #: Hand calibrations (``make_dm_env(..., calibration=NAME)``): action scale (fraction of each
 #: actuator's ctrl range per step), finger actuator gain (x gymnasium-robotics' kp and force
-#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``benchmarks/calibrate.py``
+#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``experiments/regimes.py``
 #: (docs/CALIBRATION.md). ``paper`` puts the hand in the paper's regime: a naive full press breaks
 #: the fragile block (5 of 5 episodes, 8.2 N), uniformly random actions exceed 5 N in 74 % of the
 #: episodes that touch anything, and a gradual scripted press still succeeds without breaking it

@@ -1,6 +1,6 @@
 """Wear penalties on touch: success, impacts, forces and actuator effort of each variant.
 
-    python benchmarks/wear_penalties.py [--frames 25000] [--seeds 0 1 2] [--calibration easy]
+    python experiments/wear_penalties.py [--frames 25000] [--seeds 0 1 2] [--calibration easy]
                                         [--out runs/wear] [--no-train]
 
 Trains every variant of ``--variants`` (default: the paper's ``r+rf+rsp`` and the same plus the

@@ -2,11 +2,11 @@
 # Reproduce the paper's three experiments, their figures and the final-policy evaluations that the
 # pre-registered criteria of docs/REPRODUCTION.md judge.
 #
-#   bash recipes/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
-#                             [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
-#                             [--policies DIR]  (default docs/policies for cpu/changes)
-#                             [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
-#                             [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
+#   bash recipes/grids/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
+#                                   [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
+#                                   [--policies DIR]  (default docs/policies for cpu/changes)
+#                                   [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
+#                                   [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
 #
 # Grids (default hand calibration `paper`, docs/CALIBRATION.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
@@ -42,7 +42,7 @@
 # Resumable: finished runs (DONE) are skipped, interrupted ones continue from their checkpoint;
 # final evaluations are redone (they take seconds per run).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies="" only=()
 sweeps_run=fig3_noreward_impacts,fig4_touch,fig4_fragile

@@ -12,7 +12,7 @@ For each setting (action scale, finger actuator gain, block gap along the plate'
 
 Impact is the paper's eq. 1 per fingertip, summed over the three channels; "max impact" is the
 episode's largest over fingertips and steps. Run:
-``python benchmarks/calibrate.py [--random-episodes 40] [--seed 0]``; prints a markdown table.
+``python experiments/regimes.py [--random-episodes 40] [--seed 0]``; prints a markdown table.
 """
 
 from __future__ import annotations
