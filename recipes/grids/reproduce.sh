@@ -8,7 +8,7 @@
 #                                   [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
 #                                   [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
 #
-# Grids (default hand calibration `paper`, docs/CALIBRATION.md):
+# Grids (default physics regime `paper`, docs/REGIMES.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
 #     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 5 seeds (25 runs
 #     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 59 runs of
