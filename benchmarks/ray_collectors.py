@@ -28,7 +28,7 @@ from gentlerl.training import Trainer, make_config
 from gentlerl.training.builders import AGENT_KEYS, default_env_factory
 from gentlerl.training.config import TrainConfig
 
-#: The paper-scale grid of recipes/reproduce.sh: 57 runs of 500k env frames (utd 1).
+#: The paper-scale grid of recipes/grids/reproduce.sh: 57 runs of 500k env frames (utd 1).
 GRID_RUNS, PAPER_FRAMES = 57, 500_000
 
 

@@ -1,15 +1,15 @@
-"""The real-robot path on the simulated hand: calibrate the tactile sensors, then learn ``touch``.
+"""The real-robot path on the simulated hand: fit the tactile sensor map, then learn ``touch``.
 
 ``python recipes/driver_touch.py --seed 0 --run-dir runs/driver_touch``
 
 1. A scripted session presses each fingertip of a :class:`~gentlerl.envs.SimulatedDriver` (MuJoCo
-   hand, BioTac-like raw sensors) and fits a :class:`~gentlerl.transforms.TouchCalibration`; a
-   second session measures its held-out error. The calibration is saved in the run directory.
+   hand, BioTac-like raw sensors) and fits a :class:`~gentlerl.transforms.TouchSensorMap`; a
+   second session measures its held-out error. The sensor map is saved in the run directory.
 2. ``touch`` is trained with ``scale=real`` (the paper's real-robot preset) through
    :class:`~gentlerl.envs.DriverHandEnv` with a :class:`~gentlerl.envs.ForceWatchdog`, and (with
    ``--env both``, the default) with the same config on the plain simulated env, one after the
    other. ``results.json`` holds both runs' success and impacts, the fit error and the watchdog
-   counts. On a real hand, replace the driver and the calibration session (docs/REAL_ROBOT.md).
+   counts. On a real hand, replace the driver and the pressing session (docs/REAL_ROBOT.md).
 """
 
 from __future__ import annotations
@@ -23,26 +23,26 @@ from typing import Any
 import numpy as np
 
 from gentlerl.envs import DriverHandEnv, ForceWatchdog, SimulatedDriver
-from gentlerl.envs.hand import CALIBRATIONS, DEFAULT_CALIBRATION
-from gentlerl.envs.sim_driver import calibration_session
+from gentlerl.envs.hand import DEFAULT_REGIME, REGIMES
+from gentlerl.envs.sim_driver import pressing_session
 from gentlerl.training import make_config, train
-from gentlerl.transforms import TouchCalibration
-from gentlerl.transforms.calibration import fit_errors
+from gentlerl.transforms import TouchSensorMap
+from gentlerl.transforms.sensor_map import fit_errors
 
-CALIBRATION_FILE = "touch_calibration.pt"
+SENSOR_MAP_FILE = "touch_sensor_map.pt"
 
 
-def calibrate(seed: int, run_dir: Path, hand: str) -> tuple[TouchCalibration, dict[str, Any]]:
+def fit_sensor_map(seed: int, run_dir: Path, hand: str) -> tuple[TouchSensorMap, dict[str, Any]]:
     """Fit on one scripted session, measure on another (other press rates), save the fit."""
-    driver = SimulatedDriver(seed=seed, calibration=hand)
-    raw, force = calibration_session(driver, rates=(0.01, 0.02, 0.04))
-    calibration = TouchCalibration()
-    fit = calibration.fit(raw, force)
-    raw, force = calibration_session(driver, rates=(0.015, 0.03))
-    held_out = fit_errors(calibration.forward_map(raw).numpy() - force, force)
-    calibration.save(run_dir / CALIBRATION_FILE)
-    per_tip = calibration.fit_rmse[:, 0].tolist()
-    return calibration, {"fit": fit, "held_out": held_out, "fit_rmse_per_fingertip_N": per_tip}
+    driver = SimulatedDriver(seed=seed, regime=hand)
+    raw, force = pressing_session(driver, rates=(0.01, 0.02, 0.04))
+    sensor_map = TouchSensorMap()
+    fit = sensor_map.fit(raw, force)
+    raw, force = pressing_session(driver, rates=(0.015, 0.03))
+    held_out = fit_errors(sensor_map.forward_map(raw).numpy() - force, force)
+    sensor_map.save(run_dir / SENSOR_MAP_FILE)
+    per_tip = sensor_map.fit_rmse[:, 0].tolist()
+    return sensor_map, {"fit": fit, "held_out": held_out, "fit_rmse_per_fingertip_N": per_tip}
 
 
 def _episode_column(run_dir: Path, name: str) -> np.ndarray:
@@ -66,7 +66,7 @@ def summarize(run_dir: Path, final: dict[str, float]) -> dict[str, Any]:
     }
 
 
-def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None) -> dict[str, Any]:
+def run(env: str, args: argparse.Namespace, sensor_map: TouchSensorMap | None) -> dict[str, Any]:
     """Train one run (``env`` is ``driver`` or ``sim``) and summarise it."""
     run_dir = Path(args.run_dir) / env
     collector = {"total_frames": args.total_frames} if args.total_frames else {}
@@ -77,7 +77,7 @@ def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None
         run_dir=str(run_dir),
         logging={"wandb_mode": "disabled", "progress": args.progress},
         collector=collector,
-        env={"kwargs": {"calibration": args.hand}},
+        env={"kwargs": {"regime": args.hand}},
     )
     watchdogs: list[ForceWatchdog] = []
     factory = None
@@ -85,13 +85,13 @@ def run(env: str, args: argparse.Namespace, calibration: TouchCalibration | None
 
         def factory() -> DriverHandEnv:
             watchdogs.append(ForceWatchdog(args.fingertip_limit, args.block_limit))
-            driver = SimulatedDriver(seed=args.seed, calibration=args.hand)
+            driver = SimulatedDriver(seed=args.seed, regime=args.hand)
             return DriverHandEnv(
                 driver,
                 "touch",
-                calibration=calibration,
+                sensor_map=sensor_map,
                 watchdog=watchdogs[-1],
-                action_scale=CALIBRATIONS[args.hand]["action_scale"],
+                action_scale=REGIMES[args.hand]["action_scale"],
             )
 
     result = summarize(run_dir, train(cfg, factory))
@@ -113,20 +113,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--block-limit", type=float, default=15.0, help="watchdog, N")
     parser.add_argument(
         "--hand",
-        choices=sorted(CALIBRATIONS),
-        default=DEFAULT_CALIBRATION,
-        help="the simulated hand's calibration (gentlerl.envs.hand.CALIBRATIONS), both runs",
+        choices=sorted(REGIMES),
+        default=DEFAULT_REGIME,
+        help="the simulated hand's physics regime (gentlerl.envs.hand.REGIMES), both runs",
     )
     parser.add_argument("--progress", action="store_true", help="show a progress bar")
     args = parser.parse_args(argv)
     run_dir = Path(args.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {"seed": args.seed, "scale": "real"}
-    calibration = None
+    sensor_map = None
     if args.env in ("driver", "both"):
-        calibration, results["calibration"] = calibrate(args.seed, run_dir, args.hand)
+        sensor_map, results["sensor_map"] = fit_sensor_map(args.seed, run_dir, args.hand)
     for env in ("driver", "sim") if args.env == "both" else (args.env,):
-        results[env] = run(env, args, calibration)
+        results[env] = run(env, args, sensor_map)
     tmp = run_dir / "results.json.tmp"
     tmp.write_text(json.dumps(results, indent=2) + "\n")
     os.replace(tmp, run_dir / "results.json")

@@ -196,7 +196,7 @@ def test_resume_to_a_longer_run_keeps_every_transition(tmp_path):
 def test_a_sigkilled_recipe_run_resumes_and_finishes(tmp_path):
     run_dir = tmp_path / "run"
     command = [
-        sys.executable, str(ROOT / "recipes" / "train.py"), "task=touch", "variant=r+rf",
+        sys.executable, "-m", "gentlerl", "train", "task=touch", "variant=r+rf",
         f"run_dir={run_dir}", "collector.total_frames=1600", "collector.frames_per_batch=100",
         "collector.init_random_frames=100", "logging.checkpoint_every_frames=300",
         "logging.eval_every_frames=100000", "logging.eval_episodes=1", "replay.batch_size=16",
@@ -244,14 +244,15 @@ def test_a_policy_saved_with_the_flat_config_of_older_versions_loads(tmp_path):
     actor = make_actor(63, 20, (16, 8))
     flat = dict(  # field names as older versions saved them, one level, no groups
         task="touch", variant="r+rf+rsp", seed=3, scale="cpu", collector="multi",
-        env_kwargs={"time_limit": 100}, total_frames=5000, batch_size=64, actor_hidden=[16, 8],
+        env_kwargs={"time_limit": 100, "calibration": "easy"}, total_frames=5000, batch_size=64, actor_hidden=[16, 8],
         lam=[2.0, 1.0], penalty_v_max=None, wandb_project="gentlerl",
     )  # fmt: skip
     state = {"config": flat, "obs_dim": 63, "action_dim": 20, "actor": actor.state_dict()}
     save_checkpoint(tmp_path / "best_policy.pt", state)
     cfg, loaded = load_policy(tmp_path / "best_policy.pt")
     assert (cfg.seed, cfg.collector.kind, cfg.collector.total_frames) == (3, "multi", 5000)
-    assert cfg.env.kwargs == {"time_limit": 100} and cfg.replay.batch_size == 64
+    assert cfg.env.kwargs == {"time_limit": 100, "regime": "easy"}  # the regime's earlier name
+    assert cfg.replay.batch_size == 64
     assert cfg.gentleness.lam == (2.0, 1.0) and cfg.network.bounded_support is False
     obs = TensorDict({"observation": torch.randn(4, 63)}, [4])
     assert torch.equal(loaded(obs.clone())["action"], actor(obs.clone())["action"])

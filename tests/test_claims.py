@@ -6,9 +6,10 @@ import math
 import pytest
 import yaml
 
-from gentlerl.analysis.claims import load_final_evals, main
+from gentlerl.analysis.claims import load_final_evals
 from gentlerl.analysis.criteria import first_success_frame, judge, touch_stats
 from gentlerl.analysis.runs import find_runs, load_run
+from gentlerl.apps.claims import main
 
 
 def _run(root, task, variant, seed, impacts, success, final_eval=()):

@@ -17,7 +17,7 @@ from gentlerl.training.builders import (
     collection_env_factory,
     default_env_factory,
 )
-from gentlerl.training.config import iter_fields
+from gentlerl.training.config import group_flat_config, iter_fields
 from gentlerl.transforms import DynamicsSurprise
 from tests.toy_env import ToyHandEnv
 
@@ -77,6 +77,7 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"network": {"actor_hidden": (64, 0.5)}}, "network.actor_hidden[1]=0.5 must be an integer"),
         ({"gentleness": {"surprise_nll_floor": float("nan")}}, "gentleness.surprise_nll_floor=nan must be a finite number"),
         ({"env": {"kwargs": {"foo": 1}}}, "env.kwargs ['foo'] are not keywords of task 'touch'; valid: ['action_scale'"),
+        ({"env": {"kwargs": {"calibration": "easy"}}}, "env.kwargs.calibration is now env.kwargs.regime (the hand's physics regime)"),
         ({"learner": {"gamma": 1.5}}, "learner.gamma=1.5 must be in (0, 1]"),
         ({"network": {"v_min": 10.0, "v_max": -10.0}}, "network.v_min=10.0 must be < network.v_max=-10.0"),
         ({"network": {"v_min": 1.0}}, "network.v_min=1.0 must be < 0 with bounded_support"),
@@ -116,6 +117,18 @@ def test_every_problem_is_listed_at_once():
         make_config(task="juggle", replay={"batch_size": 0, "alpha": 2.0})
     text = str(err.value)
     assert "task='juggle'" in text and "batch_size=0" in text and "alpha=2.0" in text
+
+
+def test_a_saved_config_with_the_earlier_regime_keyword_loads_under_the_new_one():
+    """``env.kwargs.calibration`` (the hand's physics regime before its rename) of a saved run is
+    read as ``env.kwargs.regime``; an external env's keyword of that name is its own, kept."""
+    saved = make_config(env={"kwargs": {"regime": "easy", "time_limit": 50}}).to_dict()
+    saved["env"]["kwargs"] = {"calibration": "easy", "time_limit": 50}
+    cfg = make_config(**group_flat_config(saved))
+    assert cfg.env.kwargs == {"regime": "easy", "time_limit": 50}
+    assert saved["env"]["kwargs"] == {"calibration": "easy", "time_limit": 50}  # not mutated
+    saved["env"]["name"] = "dm_control:finger-spin"
+    assert group_flat_config(saved)["env"]["kwargs"] == {"calibration": "easy", "time_limit": 50}
 
 
 def test_unknown_scale():

@@ -23,15 +23,16 @@ def test_every_module_and_package_the_tables_name_exists() -> None:
     tables = _section("Layout") + _section("Where does my change go")
     named = [s for s in _code_spans(tables) if s.endswith((".py", "/")) and "<" not in s]
     assert len(named) > 40  # the tables name the tree, not a handful of files
-    top = ("recipes/", "benchmarks/", "docs/", "tests/")
+    top = ("recipes/", "experiments/", "benchmarks/", "docs/", "tests/")
     missing = []
     for span in named:
         if span.startswith(top):
             found = (ROOT / span).exists()
-        else:  # a package path (``config/groups.py``), a recipes folder, or a bare module of a row
+        else:  # a package path (``config/groups.py``), a recipes or experiments file, or a bare module
             found = (
                 (PACKAGE / span).exists()
                 or (ROOT / "recipes" / span).exists()
+                or (ROOT / "experiments" / span).exists()
                 or any(PACKAGE.rglob(Path(span).name))
             )
         if not found:

@@ -64,7 +64,7 @@ def test_the_recipe_trains_the_hand_env_with_2_ray_workers_and_leaves_no_ray_pro
         "logging.progress=false", f"run_dir={tmp_path / 'run'}",
     ]  # fmt: skip
     done = subprocess.run(
-        [sys.executable, str(ROOT / "recipes" / "train.py"), *overrides],
+        [sys.executable, "-m", "gentlerl", "train", *overrides],
         env=env, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]

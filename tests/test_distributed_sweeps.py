@@ -16,7 +16,7 @@ from .test_sweeps import TINY
 
 ray = pytest.importorskip("ray")
 
-# Stands in for recipes/train.py (a real recipe run takes ~20 s here): records its arguments and
+# Stands in for `gentlerl-train` (a real run takes ~20 s here): records its arguments and
 # the node's process id, fails for seed=1, and marks the run DONE as the recipe does.
 FAKE_RECIPE = """
 import os, sys

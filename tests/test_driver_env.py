@@ -1,7 +1,7 @@
 """DriverHandEnv: specs equal to the simulated env's, the task rules, the watchdog, bad drivers.
 
 The rules are checked with a scripted fake driver (exact forces); the whole path (MuJoCo hand,
-BioTac-like sensors, calibration) with :class:`SimulatedDriver`.
+BioTac-like sensors, sensor map) with :class:`SimulatedDriver`.
 """
 
 import numpy as np
@@ -21,9 +21,9 @@ from gentlerl.envs import (
     make_dm_env,
 )
 from gentlerl.envs.factory import TASK_CLASSES, TASKS
-from gentlerl.envs.sim_driver import calibration_session
+from gentlerl.envs.sim_driver import pressing_session
 from gentlerl.training.logging import EpisodeStats, episode_transforms
-from gentlerl.transforms import TouchCalibration
+from gentlerl.transforms import TouchSensorMap
 
 A_FFJ2 = 3  # flexing the first finger's knuckle presses its pad into the block
 
@@ -52,11 +52,11 @@ class FakeDriver:
         pass
 
 
-def _linear_calibration():
+def _linear_sensor_map():
     force = np.linspace(0, 20, 64)[:, None, None] * np.ones((1, 5, 1))
-    calibration = TouchCalibration(n_knots=16)
-    calibration.fit(1000 + 100 * force, force)
-    return calibration
+    sensor_map = TouchSensorMap(n_knots=16)
+    sensor_map.fit(1000 + 100 * force, force)
+    return sensor_map
 
 
 def _press(env, steps, action=None):
@@ -74,17 +74,17 @@ def _press(env, steps, action=None):
 
 
 @pytest.fixture(scope="module")
-def sim_calibration():
+def sim_sensor_map():
     driver = SimulatedDriver(seed=0)
-    raw, force = calibration_session(driver, rates=(0.02, 0.04))
+    raw, force = pressing_session(driver, rates=(0.02, 0.04))
     driver.close()
-    calibration = TouchCalibration()
-    errors = calibration.fit(raw, force)
-    return calibration, errors
+    sensor_map = TouchSensorMap()
+    errors = sensor_map.fit(raw, force)
+    return sensor_map, errors
 
 
-def test_specs_match_the_simulated_env_and_check_env_specs(sim_calibration, driver_env, hand_env):
-    env = driver_env(SimulatedDriver(seed=0), "touch", calibration=sim_calibration[0])
+def test_specs_match_the_simulated_env_and_check_env_specs(sim_sensor_map, driver_env, hand_env):
+    env = driver_env(SimulatedDriver(seed=0), "touch", sensor_map=sim_sensor_map[0])
     check_env_specs(env)
     sim = hand_env("touch", seed=0)
     for key in sim.observation_spec.keys(True, True):
@@ -93,11 +93,11 @@ def test_specs_match_the_simulated_env_and_check_env_specs(sim_calibration, driv
     assert env.full_done_spec == sim.full_done_spec and env.reward_spec == sim.reward_spec
 
 
-def test_simulated_press_succeeds_with_calibrated_touch(sim_calibration, driver_env):
-    calibration, errors = sim_calibration
+def test_simulated_press_succeeds_with_mapped_touch(sim_sensor_map, driver_env):
+    sensor_map, errors = sim_sensor_map
     assert errors["rmse_pressed_N"] < 0.3  # BioTac model: 2-count noise on a ~150-count/N slope
     driver = SimulatedDriver(seed=0)
-    env = driver_env(driver, "touch", calibration=calibration)
+    env = driver_env(driver, "touch", sensor_map=sensor_map)
     env.set_seed(3)
     steps = _press(env, 80)
     # As in simulation: flexing one knuckle presses the pad into the block until it succeeds.
@@ -112,10 +112,10 @@ def test_simulated_press_succeeds_with_calibrated_touch(sim_calibration, driver_
     assert steps[-1][keys.ACTUATOR_FORCE][A_FFJ2] > 0.1  # the knuckle pushes against the block
 
 
-def test_watchdog_ends_the_episode_and_holds_the_last_safe_targets(sim_calibration, driver_env):
+def test_watchdog_ends_the_episode_and_holds_the_last_safe_targets(sim_sensor_map, driver_env):
     driver = SimulatedDriver(seed=0)
     watchdog = ForceWatchdog(fingertip_limit=2.0)
-    env = driver_env(driver, "touch", calibration=sim_calibration[0], watchdog=watchdog)
+    env = driver_env(driver, "touch", sensor_map=sim_sensor_map[0], watchdog=watchdog)
     env.set_seed(3)
     steps = _press(env, 80)
     last = steps[-1]
@@ -135,12 +135,12 @@ def test_watchdog_ends_the_episode_and_holds_the_last_safe_targets(sim_calibrati
 
 
 def test_block_watchdog_and_task_rules_with_a_scripted_driver(driver_env):
-    calibration = _linear_calibration()
+    sensor_map = _linear_sensor_map()
     zero, press = [0.0] * 5, [6.0, 0, 0, 0, 0]
     env = driver_env(
         FakeDriver([zero, zero, press], block=[0, 0, 6.0]),
         "touch",
-        calibration=calibration,
+        sensor_map=sensor_map,
         watchdog=ForceWatchdog(fingertip_limit=None, block_limit=8.0),
         tare=False,
     )
@@ -148,21 +148,21 @@ def test_block_watchdog_and_task_rules_with_a_scripted_driver(driver_env):
     assert len(steps) == 2 and steps[-1][keys.SUCCESS].item() and not steps[-1][keys.WATCHDOG]
     # 4 N in one control step on a fragile block: impact > 3 N breaks it (the sim's rule, eq. 1).
     env = driver_env(
-        FakeDriver([zero, zero, [4.0, 0, 0, 0, 0]], block=[1.0]), Fragile(), calibration=calibration
+        FakeDriver([zero, zero, [4.0, 0, 0, 0, 0]], block=[1.0]), Fragile(), sensor_map=sensor_map
     )
     steps = _press(env, 5)
     assert steps[-1][keys.BROKEN].item() and steps[-1][keys.REWARD].item() == -0.5
     # Block over its limit: the watchdog ends the episode and re-commands the previous targets.
     driver = FakeDriver([zero], block=[0.0, 0.0, 9.0])
     watchdog = ForceWatchdog(fingertip_limit=None, block_limit=8.0)
-    env = driver_env(driver, "touch", calibration=calibration, watchdog=watchdog, tare=False)
+    env = driver_env(driver, "touch", sensor_map=sensor_map, watchdog=watchdog, tare=False)
     steps = _press(env, 5)
     assert steps[-1][keys.WATCHDOG].item() and watchdog.block_trips == 1 and len(steps) == 2
     np.testing.assert_allclose(driver.commands[-1], driver.commands[-3])
 
 
 def test_time_limit_is_truncation(driver_env):
-    env = driver_env(FakeDriver([[0.0] * 5]), calibration=_linear_calibration(), time_limit=3)
+    env = driver_env(FakeDriver([[0.0] * 5]), sensor_map=_linear_sensor_map(), time_limit=3)
     steps = _press(env, 10, action=torch.zeros(20))
     assert len(steps) == 3 and steps[-1][keys.TRUNCATED].item()
     assert not steps[-1][keys.TERMINATED].item()
@@ -194,31 +194,31 @@ class _Broken(FakeDriver):
     ],
 )
 def test_bad_readings_name_the_field(field, value, message, driver_env):
-    env = driver_env(_Broken(field, value), calibration=_linear_calibration())
+    env = driver_env(_Broken(field, value), sensor_map=_linear_sensor_map())
     with pytest.raises(ValueError, match=message):
         env.reset()
 
 
 def test_bad_configuration_raises():
-    calibration = _linear_calibration()
-    with pytest.raises(ValueError, match=r"calibration is for \(5, 3\)"):
-        DriverHandEnv(FakeDriver([[0.0] * 5]), calibration=TouchCalibration(n_channels=3))
+    sensor_map = _linear_sensor_map()
+    with pytest.raises(ValueError, match=r"sensor_map is for \(5, 3\)"):
+        DriverHandEnv(FakeDriver([[0.0] * 5]), sensor_map=TouchSensorMap(n_channels=3))
     with pytest.raises(ValueError, match="not fitted"):
-        DriverHandEnv(FakeDriver([[0.0] * 5]), calibration=TouchCalibration())
+        DriverHandEnv(FakeDriver([[0.0] * 5]), sensor_map=TouchSensorMap())
     with pytest.raises(ValueError, match="no block sensor"):
         DriverHandEnv(
             FakeDriver([[0.0] * 5]),
-            calibration=calibration,
+            sensor_map=sensor_map,
             watchdog=ForceWatchdog(block_limit=10.0),
         )
     with pytest.raises(ValueError, match="unknown task 'push'"):
-        DriverHandEnv(FakeDriver([[0.0] * 5]), "push", calibration=calibration)
+        DriverHandEnv(FakeDriver([[0.0] * 5]), "push", sensor_map=sensor_map)
 
 
 @pytest.mark.parametrize("task", TASKS)
 def test_every_simulated_task_runs_on_a_driver(task):
     """One task table: the driver env builds each simulated task with the same class."""
-    env = DriverHandEnv(FakeDriver([[0.0] * 5]), task, calibration=_linear_calibration())
+    env = DriverHandEnv(FakeDriver([[0.0] * 5]), task, sensor_map=_linear_sensor_map())
     assert type(env.task) is TASK_CLASSES[task] is type(make_dm_env(task).task)
 
 
@@ -230,10 +230,10 @@ def test_watchdog_limit_must_be_positive_and_finite(limit):
         ForceWatchdog(fingertip_limit=None, block_limit=None)
 
 
-def test_same_seed_same_rollout(sim_calibration, driver_env):
+def test_same_seed_same_rollout(sim_sensor_map, driver_env):
     rollouts = []
     for _ in range(2):
-        env = driver_env(SimulatedDriver(seed=0), calibration=sim_calibration[0])
+        env = driver_env(SimulatedDriver(seed=0), sensor_map=sim_sensor_map[0])
         env.set_seed(5)
         torch.manual_seed(0)
         rollouts.append(env.rollout(20))
@@ -243,7 +243,7 @@ def test_same_seed_same_rollout(sim_calibration, driver_env):
 def test_episode_statistics_count_watchdog_endings(driver_env):
     watchdog = ForceWatchdog(fingertip_limit=None, block_limit=8.0)
     driver = FakeDriver([[0.0] * 5], block=[0.0, 0.0, 9.0])
-    env = driver_env(driver, "touch", calibration=_linear_calibration(), watchdog=watchdog)
+    env = driver_env(driver, "touch", sensor_map=_linear_sensor_map(), watchdog=watchdog)
     batch = TransformedEnv(env, Compose(*episode_transforms())).rollout(5, break_when_any_done=True)
     batch.set(("collector", "traj_ids"), torch.zeros(len(batch), dtype=torch.long))
     batch.set(("next", keys.IMPACT), torch.zeros(len(batch), 5))

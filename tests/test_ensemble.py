@@ -195,7 +195,7 @@ def test_dynamics_nll_on_held_out_hand_transitions_drops_after_training():
         out["loss_dynamics"].backward()
         opt.step()
     after = held_out_nll()
-    # Summed over 63 dims; demand a 30-nat drop (measured with the default calibration: 88.8 ->
+    # Summed over 63 dims; demand a 30-nat drop (measured with the default regime: 88.8 ->
     # 52.5; numbers printed with -s).
     print(f"held-out dynamics NLL before {before:.1f} after {after:.1f}")
     assert after < before - 30, (before, after)

@@ -52,12 +52,12 @@ def test_hands_reset_on_their_own_and_are_seeded_as_parallel_env_workers(hand_en
     """Hand 0 presses (its episode ends early and restarts); hand 1 does not: hand 1's trajectory
     is that of a single env seeded with the second seed of TorchRL's seed chain."""
     seed = 7
-    batched = hand_env("touch", seed=seed, num_envs=2, num_threads=2, calibration="easy")
+    batched = hand_env("touch", seed=seed, num_envs=2, num_threads=2, regime="easy")
     actions = _actions(60, 2, [True, False], seed=1)
     b = _run(batched, actions)
     done0 = [td[keys.DONE][0].item() for td in b]
     assert any(done0) and not any(td[keys.DONE][1].item() for td in b)
-    single = hand_env("touch", seed=seed_generator(seed), calibration="easy")
+    single = hand_env("touch", seed=seed_generator(seed), regime="easy")
     a = _run(single, actions[:, 1])
     for x, y in zip(a, b, strict=True):
         assert torch.equal(x[keys.OBSERVATION], y[keys.OBSERVATION][1])

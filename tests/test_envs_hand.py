@@ -55,13 +55,13 @@ def test_touch_success_terminates_with_reward_one():
     assert ts.reward == 1.0 and env.task.success
     assert touches[-1][:, 0].max() > 5.0  # the first step past the threshold ...
     assert touches[-2][:, 0].max() <= 5.0  # ... and not before
-    assert 8 < steps < 16  # the default calibration: 0.07 x 1.57 rad per step
+    assert 8 < steps < 16  # the default regime: 0.07 x 1.57 rad per step
 
 
 def test_actuator_force_is_the_knuckles_effort_of_the_press():
     """Flexing the index knuckle into the block: its actuator exerts < 0.1 N m while it moves
     freely and 0.5-0.6 N m (position error x kp) for the 5 N press (measured 0.085 and 0.61 at
-    the default calibration, 0.034 and 0.54 at ``easy``)."""
+    the default regime, 0.034 and 0.54 at ``easy``)."""
     env, ts, steps, _ = _press("touch", randomize_block=False)
     force = ts.observation["actuator_force"]
     assert force.shape == (20,) and force.dtype == np.float32
@@ -86,7 +86,7 @@ def test_fragile_gentle_press_succeeds_with_reward_five():
 
 
 def test_fragile_full_press_breaks_the_block():
-    """The default (``paper``) calibration: a full-speed press breaks the fragile block."""
+    """The default (``paper``) regime: a full-speed press breaks the fragile block."""
     env, ts, _, touches = _press("fragile", randomize_block=False)
     impacts = np.clip(np.diff(touches, axis=0), 0, None).sum(-1)
     assert impacts[-1].max() > 3.0  # the last step's impact broke it
@@ -95,21 +95,21 @@ def test_fragile_full_press_breaks_the_block():
     assert ts.discount == 0.0
 
 
-def test_easy_calibration_keeps_the_full_press_gentle():
-    """``calibration="easy"`` (action scale 0.02): the same full-speed press succeeds."""
-    env, ts, steps, touches = _press("fragile", randomize_block=False, calibration="easy")
+def test_easy_regime_keeps_the_full_press_gentle():
+    """``regime="easy"`` (action scale 0.02): the same full-speed press succeeds."""
+    env, ts, steps, touches = _press("fragile", randomize_block=False, regime="easy")
     impacts = np.clip(np.diff(touches, axis=0), 0, None).sum(-1)
     assert env.task.action_scale == 0.02 and impacts.max() < 1.5
     assert ts.reward == 5.0 and env.task.success and 20 < steps < 60
 
 
-def test_calibration_values_and_overrides():
+def test_regime_values_and_overrides():
     gain = {
-        n: make_dm_env("touch", calibration=n).physics.model.actuator_gainprm[3, 0]
+        n: make_dm_env("touch", regime=n).physics.model.actuator_gainprm[3, 0]
         for n in ("paper", "easy")
     }
     assert gain == {"paper": 3.0, "easy": 3.0}
-    env = make_dm_env("touch", calibration="easy", action_scale=0.1, actuator_gain=5.0)
+    env = make_dm_env("touch", regime="easy", action_scale=0.1, actuator_gain=5.0)
     assert env.task.action_scale == 0.1 and env.physics.model.actuator_gainprm[3, 0] == 5.0
     near, far = (
         make_dm_env("touch", randomize_block=False, block_gap=gap).task.block_pos
@@ -142,6 +142,13 @@ def test_block_randomisation_is_small_and_seeded():
     assert np.abs(a - fixed).max() <= 0.005 and a[2] == fixed[2]
 
 
+def test_the_regimes_earlier_keyword_is_refused_naming_the_new_one():
+    with pytest.raises(
+        TypeError, match=r"^calibration= is now regime= \(the hand's physics regime\)$"
+    ):
+        make_dm_env("touch", calibration="easy")
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
@@ -151,7 +158,7 @@ def test_block_randomisation_is_small_and_seeded():
         ({"block_range": float("nan")}, "block_range"),
         ({"action_scale": 0.0}, r"action_scale must be in \(0, 1\], got 0.0"),
         ({"time_limit": 0}, "time_limit must be an integer >= 1"),
-        ({"calibration": "hard"}, "unknown calibration 'hard'; expected one of"),
+        ({"regime": "hard"}, "unknown regime 'hard'; expected one of"),
         ({"actuator_gain": 0.0}, "actuator_gain must be a finite number > 0, got 0.0"),
         ({"block_gap": 0.2}, r"block_gap must be in \[-0.01, 0.05\] m, got 0.2"),
     ],

@@ -49,7 +49,7 @@ def test_full_press_breaks_and_gentle_press_succeeds(tmp_path):
     assert slow["success_rate"] == 1.0 and slow["broken_rate"] == 0.0
     assert slow["p90_max_impact"] < 3.0
     # The earlier, easier hand: the same full-speed press stays below the break threshold.
-    easy = evaluate_policy(tmp_path / "fast.pt", 3, calibration="easy", seed=1)
+    easy = evaluate_policy(tmp_path / "fast.pt", 3, regime="easy", seed=1)
     assert easy["success_rate"] == 1.0 and easy["p90_max_impact"] < 3.0
 
 
@@ -65,3 +65,12 @@ def test_cli_prints_json_and_checks_its_input(tmp_path, capsys):
         evaluate_policy(path, 1, task="grasp")
     with pytest.raises(FileNotFoundError, match="no checkpoint at"):
         evaluate_policy(tmp_path / "missing.pt", 1)
+
+
+@pytest.mark.parametrize("argv", [["--calibration", "easy"], ["--calibration=easy"]])
+def test_the_regimes_earlier_option_is_refused_in_one_line_naming_the_new_one(argv, tmp_path):
+    with pytest.raises(SystemExit) as refused:
+        main([str(tmp_path / "p.pt"), *argv])
+    assert str(refused.value) == (
+        "gentlerl evaluate: --calibration is now --regime (the hand's physics regime)"
+    )

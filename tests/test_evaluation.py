@@ -10,7 +10,7 @@ from gentlerl.transforms import ImpactPenalty
 
 
 class _Press(torch.nn.Module):
-    """Flex the index knuckle: the block is pressed with > 5 N in ~38 steps (calibration "easy")."""
+    """Flex the index knuckle: the block is pressed with > 5 N in ~38 steps (regime "easy")."""
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         action = torch.zeros(*obs.shape[:-1], 20)
@@ -20,7 +20,7 @@ class _Press(torch.nn.Module):
 
 def _env(make_env, seed: int, num_envs: int | None = None):
     env = TransformedEnv(
-        make_env("fragile", seed=seed, num_envs=num_envs, calibration="easy"), ImpactPenalty()
+        make_env("fragile", seed=seed, num_envs=num_envs, regime="easy"), ImpactPenalty()
     )
     env.set_seed(seed)
     return env

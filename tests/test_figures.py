@@ -13,7 +13,6 @@ from gentlerl.analysis.curves import (
     learning_curves_figure,
     seeds_label,
 )
-from gentlerl.analysis.figures import build_parser, main, resolve_run_paths
 from gentlerl.analysis.runs import (
     final_impacts,
     find_runs,
@@ -21,6 +20,7 @@ from gentlerl.analysis.runs import (
     judged_by_success,
     successful_final_impacts,
 )
+from gentlerl.apps.plot import build_parser, main, resolve_run_paths
 from tests.test_plot import EPISODES_HEADER, _fake_run
 
 

@@ -109,19 +109,19 @@ def test_missing_sweep_file_and_bad_set_are_refused(tmp_path):
         with pytest.raises(SystemExit, match="--set"):
             sweep([good, "--out", str(tmp_path / "o"), "--set", item, "--dry-run"])
     assert sweep([good, "--out", str(tmp_path / "o"), "--dry-run", "--set",
-                  "+env.kwargs.calibration=easy"]) == 0  # fmt: skip
+                  "+env.kwargs.regime=easy"]) == 0  # fmt: skip
 
 
-# --- the watchdog and the calibration fail closed ------------------------------------------
+# --- the watchdog and the sensor map fail closed ------------------------------------------
 
 
-def _linear_calibration(n_knots: int = 16):
-    from gentlerl.transforms import TouchCalibration
+def _linear_sensor_map(n_knots: int = 16):
+    from gentlerl.transforms import TouchSensorMap
 
     force = np.linspace(0, 20, 64)[:, None, None] * np.ones((1, 5, 1))
-    calibration = TouchCalibration(n_knots=n_knots)
-    calibration.fit(1000 + 100 * force, force)
-    return calibration, force
+    sensor_map = TouchSensorMap(n_knots=n_knots)
+    sensor_map.fit(1000 + 100 * force, force)
+    return sensor_map, force
 
 
 @pytest.mark.parametrize(
@@ -152,62 +152,62 @@ def test_the_block_watchdog_trips_on_a_missing_or_implausible_force(block):
         (lambda c: c.fitted.fill_(False), "never fitted"),
     ],
 )
-def test_a_tampered_calibration_file_is_refused_on_load(tmp_path, edit, match):
-    from gentlerl.transforms import TouchCalibration
+def test_a_tampered_sensor_map_file_is_refused_on_load(tmp_path, edit, match):
+    from gentlerl.transforms import TouchSensorMap
 
-    calibration, _ = _linear_calibration()
-    edit(calibration)
+    sensor_map, _ = _linear_sensor_map()
+    edit(sensor_map)
     path = tmp_path / "cal.pt"
-    calibration.save(path)
+    sensor_map.save(path)
     with pytest.raises(ValueError, match=match):
-        TouchCalibration.load(path)
+        TouchSensorMap.load(path)
 
 
-def test_a_blinding_calibration_cannot_reach_the_driver_env(driver_env):
+def test_a_blinding_sensor_map_cannot_reach_the_driver_env(driver_env):
     from gentlerl.envs import SimulatedDriver
 
-    calibration, _ = _linear_calibration()
-    calibration.force_knots.zero_()
+    sensor_map, _ = _linear_sensor_map()
+    sensor_map.force_knots.zero_()
     with pytest.raises(ValueError, match="spans 0 N"):
-        driver_env(SimulatedDriver(seed=0), "touch", calibration=calibration)
+        driver_env(SimulatedDriver(seed=0), "touch", sensor_map=sensor_map)
 
 
 @pytest.mark.parametrize(
     "content", [b"", b"not a torch file", None], ids=["empty", "garbage", "truncated"]
 )
-def test_empty_truncated_or_foreign_calibration_files_are_refused(tmp_path, content):
-    from gentlerl.transforms import TouchCalibration
+def test_empty_truncated_or_foreign_sensor_map_files_are_refused(tmp_path, content):
+    from gentlerl.transforms import TouchSensorMap
 
     path = tmp_path / "cal.pt"
     if content is None:
-        _linear_calibration()[0].save(path)
+        _linear_sensor_map()[0].save(path)
         content = path.read_bytes()[:200]
     path.write_bytes(content)
-    with pytest.raises(ValueError, match="is not a TouchCalibration file"):
-        TouchCalibration.load(path)
+    with pytest.raises(ValueError, match="is not a TouchSensorMap file"):
+        TouchSensorMap.load(path)
     torch.save({"shape": (5, 1), "n_knots": 10**9, "state": {}}, path)
-    with pytest.raises(ValueError, match="not a hand's calibration"):
-        TouchCalibration.load(path)
+    with pytest.raises(ValueError, match="not a hand's sensor map"):
+        TouchSensorMap.load(path)
 
 
 def test_fit_refuses_dead_inverted_and_unbounded_channels():
-    from gentlerl.transforms import TouchCalibration
+    from gentlerl.transforms import TouchSensorMap
 
-    _, force = _linear_calibration()
+    _, force = _linear_sensor_map()
     with pytest.raises(ValueError, match="dead channel"):
-        TouchCalibration(n_knots=8).fit(np.full_like(force, 1000.0), force)
+        TouchSensorMap(n_knots=8).fit(np.full_like(force, 1000.0), force)
     with pytest.raises(ValueError, match="inverted"):
-        TouchCalibration(n_knots=8).fit(3000 - 100 * force, force)
+        TouchSensorMap(n_knots=8).fit(3000 - 100 * force, force)
     for span in (float("nan"), -1.0, 0.0, "1"):
         with pytest.raises(ValueError, match="min_span"):
-            TouchCalibration(n_knots=8).fit(1000 + 100 * force, force, min_span=span)
+            TouchSensorMap(n_knots=8).fit(1000 + 100 * force, force, min_span=span)
 
 
 def test_forward_map_refuses_non_finite_raw_readings():
-    calibration, _ = _linear_calibration()
+    sensor_map, _ = _linear_sensor_map()
     for value in (-np.inf, np.inf, np.nan):
         with pytest.raises(ValueError, match="must be finite"):
-            calibration.forward_map(np.full((5, 1), value))
+            sensor_map.forward_map(np.full((5, 1), value))
 
 
 class _StallingDriver:
@@ -243,7 +243,7 @@ def test_a_stalled_read_ends_the_episode_safely_and_says_so(driver_env):
     from gentlerl.envs.driver import DriverTimeout
 
     driver = _StallingDriver(stall_at=4)  # tare + reset read, one step, then a stall
-    env = driver_env(driver, "touch", calibration=_linear_calibration()[0], read_timeout=0.2)
+    env = driver_env(driver, "touch", sensor_map=_linear_sensor_map()[0], read_timeout=0.2)
     td = env.reset()
     td = env.step(td.set(keys.ACTION, torch.ones(20)))["next"]
     held = driver.commands[-1]
@@ -256,11 +256,11 @@ def test_a_stalled_read_ends_the_episode_safely_and_says_so(driver_env):
     driver.release.set()
     for bad in (0, -1.0, float("nan"), "1"):
         with pytest.raises(ValueError, match="read_timeout"):
-            driver_env(_StallingDriver(99), calibration=_linear_calibration()[0], read_timeout=bad)
+            driver_env(_StallingDriver(99), sensor_map=_linear_sensor_map()[0], read_timeout=bad)
 
 
 def test_an_implausible_block_force_is_refused(driver_env):
-    env = driver_env(_StallingDriver(99, block=-50.0), calibration=_linear_calibration()[0])
+    env = driver_env(_StallingDriver(99, block=-50.0), sensor_map=_linear_sensor_map()[0])
     with pytest.raises(ValueError, match="'block_force'=-50.0 N is implausible"):
         env.reset()
 
@@ -451,7 +451,7 @@ def _fake_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000,0
     ],
 )
 def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content, match):
-    from gentlerl.analysis.figures import main as plot
+    from gentlerl.apps.plot import main as plot
 
     run = _fake_run(tmp_path / "runs")
     (run / file).write_text(content)
@@ -461,7 +461,7 @@ def test_plot_names_a_malformed_file_and_writes_nothing(tmp_path, file, content,
 
 
 def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsys):
-    from gentlerl.analysis.figures import main as plot
+    from gentlerl.apps.plot import main as plot
 
     _fake_run(tmp_path / "runs", seed=0, scalars=None)
     with pytest.raises(FileNotFoundError, match="none of the 1 run"):
@@ -485,7 +485,7 @@ def test_plot_skips_runs_that_logged_nothing_instead_of_nan_rows(tmp_path, capsy
     ],
 )
 def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
-    from gentlerl.analysis.claims import main as claims
+    from gentlerl.apps.claims import main as claims
 
     evals = tmp_path / "evals" / "sweep"
     evals.mkdir(parents=True)
@@ -496,7 +496,7 @@ def test_claims_refuses_a_bad_final_eval_file(tmp_path, content, match):
 
 
 def test_claims_refuses_a_missing_final_evals_folder(tmp_path):
-    from gentlerl.analysis.claims import main as claims
+    from gentlerl.apps.claims import main as claims
 
     _fake_run(tmp_path / "runs")
     for folder in (tmp_path / "nonexistent", tmp_path / "runs"):
@@ -657,7 +657,7 @@ def test_train_refuses_unknown_fields_in_one_line(monkeypatch):
     from gentlerl.cli import main
 
     with pytest.raises(SystemExit, match=r"unknown config field\(s\) \['foo', 'network.bogus'\]"):
-        main(["train", "foo=1", "network.bogus=2", "seed=1", "+env.kwargs.calibration=easy"])
+        main(["train", "foo=1", "network.bogus=2", "seed=1", "+env.kwargs.regime=easy"])
 
 
 def test_video_without_an_opengl_backend_says_what_to_install(tmp_path, monkeypatch):
@@ -759,7 +759,7 @@ def test_a_sweep_file_cannot_send_its_runs_to_a_ray_cluster(tmp_path, parameters
     ("item", "match"),
     [
         ("logging.wandb_project=${oc.env:HOME}", "string value may hold only"),
-        ("+env.kwargs.calibration=${oc.env:HOME}", "string value may hold only"),
+        ("+env.kwargs.regime=${oc.env:HOME}", "string value may hold only"),
         ("collector.kind=ray", "a sweep does not choose where its runs execute"),
         ("collector.ray_address=evil.example:6379", "a sweep does not choose where"),
         ("seed=[1", "not a plain number, name or list"),

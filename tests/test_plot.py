@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import yaml
 
-from gentlerl.analysis.figures import main
 from gentlerl.analysis.runs import (
     after_intrinsic_start,
     final_eval_episodes,
@@ -16,6 +15,7 @@ from gentlerl.analysis.runs import (
     successful_final_impacts,
 )
 from gentlerl.analysis.summary import fade_ratio, format_table, summary_table, time_to_gentle
+from gentlerl.apps.plot import main
 
 EPISODES_HEADER = "frames,episode,success,broken,max_impact,return\n"
 

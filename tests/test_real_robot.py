@@ -11,7 +11,7 @@ from gentlerl.apps.train import config_from_hydra, register_configs
 from gentlerl.config.fields import get
 from gentlerl.training import make_config
 from gentlerl.training.config import iter_fields
-from gentlerl.transforms import TouchCalibration
+from gentlerl.transforms import TouchSensorMap
 
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
@@ -50,9 +50,9 @@ def test_driver_example_end_to_end(tmp_path):
     spec.loader.exec_module(recipe)
     results = recipe.main(["--run-dir", str(tmp_path), "--total-frames", "400", "--env", "both"])
     assert json.loads((tmp_path / "results.json").read_text()) == results
-    assert results["calibration"]["held_out"]["rmse_pressed_N"] < 0.3
-    calibration = TouchCalibration.load(tmp_path / "touch_calibration.pt")
-    assert bool(calibration.fitted) and calibration.shape == (5, 1)
+    assert results["sensor_map"]["held_out"]["rmse_pressed_N"] < 0.3
+    sensor_map = TouchSensorMap.load(tmp_path / "touch_sensor_map.pt")
+    assert bool(sensor_map.fitted) and sensor_map.shape == (5, 1)
     for env in ("driver", "sim"):
         assert 0.0 <= results[env]["eval_final"]["success_rate"] <= 1.0
         assert results[env]["train_episodes"] >= 2  # 400 frames of <= 200-step episodes

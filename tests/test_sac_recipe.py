@@ -48,31 +48,6 @@ def test_the_sac_recipe_refuses_a_bad_setting_in_one_line(capsys):
         sac.parse(["seed=abc"])
 
 
-def test_the_table_applies_the_preregistered_verdicts():
-    table = load("sac_table")
-    r = {"mean_success": 1.0, "successful_impact": 6.0}
-    assert table.verdict("touch", r, {"mean_success": 0.9, "successful_impact": 4.0}) == (
-        "gentleness transfers"
-    )
-    assert table.verdict("touch", r, {"mean_success": 0.5, "successful_impact": 4.0}) == (
-        "gentler but less successful"
-    )
-    assert table.verdict("touch", r, {"mean_success": 1.0, "successful_impact": 5.0}) == (
-        "not gentler"
-    )
-    weak = {"mean_success": 0.3, "successful_impact": 6.0}
-    assert table.verdict("fragile", weak, {"mean_success": 0.4, "successful_impact": 1.0}) == (
-        "SAC does not learn the task at this budget"
-    )
-    assert table.verdict("fragile", weak, {"mean_success": 0.9, "successful_impact": 2.0}) == (
-        "gentleness transfers; helps on the fragile block"
-    )
-    never = {"mean_success": 0.0, "successful_impact": float("nan")}
-    assert table.verdict("touch", never, {"mean_success": 1.0, "successful_impact": 2.5}) == (
-        "more successful than r, which never succeeds; impacts not comparable"
-    )
-
-
 def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path):
     """The finding: ``sac_grid.sh --out 'sg$(touch X)'`` ran the command (xargs ... sh -c)."""
     import os
@@ -85,15 +60,18 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
     out = "sg$(touch X) with space"
     env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}", "ARGV_LOG": str(tmp_path / "argv")}
     proc = subprocess.run(
-        ["bash", str(RECIPES / "sac_grid.sh"), "--out", out, "--workers", "2"],
+        ["bash", str(RECIPES / "grids" / "sac_grid.sh"), "--out", out, "--workers", "2"],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert not (tmp_path / "X").exists()
     argv = (tmp_path / "argv").read_text().splitlines()
     assert f"run_dir={out}/touch/r/seed0" in argv and argv.count("seed=2") == 4
+    assert argv[-5:] == ["-m", "gentlerl", "table", "sac", out]  # then the table of the grid
     bad = subprocess.run(
-        ["bash", str(RECIPES / "sac_grid.sh"), "--workers", "0"], capture_output=True, text=True
+        ["bash", str(RECIPES / "grids" / "sac_grid.sh"), "--workers", "0"],
+        capture_output=True,
+        text=True,
     )
     assert bad.returncode == 2 and "--workers must be a positive integer, got '0'" in bad.stderr
 

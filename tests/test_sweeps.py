@@ -90,8 +90,8 @@ def test_a_real_tiny_grid_runs_the_recipe_and_then_skips_it(tmp_path):
 
 
 def _method_settings(method: str) -> dict[str, str]:
-    """The ``--set KEY=VALUE`` pairs that ``recipes/reproduce.sh --method METHOD`` adds."""
-    text = (SWEEPS.parent / "reproduce.sh").read_text()
+    """The ``--set KEY=VALUE`` pairs that ``recipes/grids/reproduce.sh --method METHOD`` adds."""
+    text = (SWEEPS.parent / "grids" / "reproduce.sh").read_text()
     block = re.search(rf"^\s*{re.escape(method)}\) extra\+=\((.*?)\) ;;", text, re.M | re.S)
     assert block is not None, f"no --method {method} in reproduce.sh"
     return dict(pair.split("=", 1) for pair in re.findall(r"--set (\S+)", block.group(1)))

@@ -337,7 +337,7 @@ def test_default_recipe_learns_touch(tmp_path):
         run_dir=str(tmp_path),
         logging={"wandb_mode": "disabled", "progress": False},
         collector={"total_frames": 30_000},
-        env={"kwargs": {"calibration": "easy"}},
+        env={"kwargs": {"regime": "easy"}},
     )
     trainer = Trainer(cfg)
     trainer.run()

@@ -94,7 +94,7 @@ def test_scripted_press_renders_and_colours_the_block_against_the_background(tmp
     actor = TensorDictModule(
         lambda obs: press.expand(*obs.shape[:-1], 20), ["observation"], ["action"]
     )
-    env = make_env("touch", seed=0, randomize_block=False, calibration="easy")
+    env = make_env("touch", seed=0, randomize_block=False, regime="easy")
     try:
         frames = record_rollouts(env, actor, episodes=1, size=64, hold=2)
         model = env.dm_env.physics.model

@@ -1,6 +1,6 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,export,calibration,forces}``.
+"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,table,export,...}``.
 
-Each subcommand is a module's ``main(argv, prog)`` (:mod:`gentlerl.apps`, :mod:`gentlerl.analysis`);
+Each subcommand is a module's ``main(argv, prog)`` in :mod:`gentlerl.apps`;
 ``gentlerl COMMAND --help`` prints that command's options with their defaults. Modules are imported
 only when their command runs, so ``gentlerl --help`` and ``gentlerl plot`` start without loading
 torch or MuJoCo.
@@ -20,13 +20,14 @@ from gentlerl.apps.errors import DEBUG_ENV, debugging, exit_status, interrupted,
 COMMANDS: dict[str, tuple[str | None, str]] = {
     "train": (None, "train an agent (hydra overrides: task=touch variant=r+rf+rsp seed=0 ...)"),
     "sweep": ("gentlerl.apps.sweeps", "run a wandb grid sweep file locally, resumably"),
-    "plot": (
-        "gentlerl.analysis.figures",
-        "paper-style figures and a summary table from runs or a sweep",
-    ),
+    "plot": ("gentlerl.apps.plot", "paper-style figures and a summary table from runs or a sweep"),
     "video": ("gentlerl.apps.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
     "evaluate": ("gentlerl.apps.evaluate", "success, broken rate and impacts of a saved policy"),
-    "claims": ("gentlerl.analysis.claims", "the paper's six claims judged on a reproduce.sh grid"),
+    "claims": ("gentlerl.apps.claims", "the paper's six claims judged on a reproduce.sh grid"),
+    "table": (
+        "gentlerl.apps.table",
+        "the SAC grid's or GentleBench's table with its pre-registered verdicts",
+    ),
     "export": (
         "gentlerl.apps.export",
         "runs' final actors as small policy files (no buffer, critics)",

@@ -16,7 +16,7 @@ PIXELS = "pixels"
 TACTILE = "tactile"  # [5, R] raw tactile channels as the driver reads them (sensor units)
 BLOCK_FORCE = "block_force"  # [1] force on the block (N), when the driver measures it
 WATCHDOG = "watchdog"  # [1] bool: the force watchdog ended the episode at this step
-CALIBRATED_TACTILE = "calibrated_tactile"  # [5, R] TouchCalibration's output as a transform (N)
+TACTILE_FORCE = "tactile_force"  # [5, R] TouchSensorMap's output as a transform (N)
 
 ACTION = "action"
 REWARD = "reward"  # task reward r_t, [1]

@@ -5,8 +5,12 @@
   the modules below;
 - :mod:`~gentlerl.analysis.curves` and :mod:`~gentlerl.analysis.summary`: learning curves and the
   summary table of a set of runs;
-- :mod:`~gentlerl.analysis.figures`: the ``gentlerl plot`` command (figures and summary files);
-- :mod:`~gentlerl.analysis.criteria`: the six claims' pre-registered criteria, a verdict each;
-- :mod:`~gentlerl.analysis.claims`: the ``gentlerl claims`` command (the criteria judged on grids
-  of runs).
+- :mod:`~gentlerl.analysis.figures`: the figures and summary files of ``gentlerl plot``;
+- :mod:`~gentlerl.analysis.criteria`: the pre-registered criteria, one function per rule (the six
+  claims, the SAC grid, GentleBench);
+- :mod:`~gentlerl.analysis.claims`: the six claims judged on grids of runs (``gentlerl claims``);
+- :mod:`~gentlerl.analysis.grid_tables`: the SAC grid's and GentleBench's tables with their
+  verdicts (``gentlerl table``).
+
+The commands themselves are in :mod:`gentlerl.apps`.
 """

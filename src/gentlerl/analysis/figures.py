@@ -1,4 +1,5 @@
-"""Paper-style figures from run directories: ``gentlerl plot RUN_DIR... -o OUT``.
+"""Paper-style figures from run directories (the ``gentlerl plot`` command is
+:mod:`gentlerl.apps.plot`).
 
 Draws what :mod:`gentlerl.analysis.runs` reads from run directories (or a sweep's runs). Figures
 (PNG):
@@ -22,11 +23,9 @@ Draws what :mod:`gentlerl.analysis.runs` reads from run directories (or a sweep'
 
 from __future__ import annotations
 
-import argparse
 import csv
-import sys
 from collections import defaultdict
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -44,13 +43,12 @@ from gentlerl.analysis.runs import (  # noqa: E402
     final_impacts,
     final_policy_episodes,
     final_sources,
-    find_runs,
     group_runs,
     judged_by_success,
     seed_band,
     successful_final_impacts,
 )
-from gentlerl.analysis.summary import format_table, summary_markdown, summary_table  # noqa: E402
+from gentlerl.analysis.summary import summary_markdown, summary_table  # noqa: E402
 from gentlerl.config.layout import FINAL_EVAL_EPISODES  # noqa: E402
 from gentlerl.files import write_atomic  # noqa: E402
 
@@ -202,34 +200,6 @@ def _save(fig: plt.Figure, path: Path) -> Path:
     return path
 
 
-def build_parser(prog: str = "gentlerl plot") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    parser.add_argument(
-        "runs",
-        nargs="+",
-        help="run directories, folders of runs, or sweep files (recipes/sweeps/NAME.yaml: the "
-        "runs of `gentlerl sweep` under SWEEPS_OUT/NAME)",
-    )
-    parser.add_argument("-o", "--out", default="figures", help="output folder for the PNGs")
-    parser.add_argument(
-        "--sweeps-out", default="runs/sweeps", help="where `gentlerl sweep --out` put its runs"
-    )
-    return parser
-
-
-def resolve_run_paths(paths: Iterable[str], sweeps_out: str | Path) -> list[Path]:
-    """Run folders as given, with each sweep file replaced by its runs' folder."""
-    resolved = []
-    for path in map(Path, paths):
-        is_sweep = path.suffix in (".yaml", ".yml") and path.is_file()
-        resolved.append(Path(sweeps_out) / path.stem if is_sweep else path)
-    return resolved
-
-
 def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
     """The paper-style figure set and the summary table (CSV and markdown) in ``out``."""
     paths = [
@@ -249,20 +219,3 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
     write_atomic(out / "summary.csv", write_csv, newline="")
     write_atomic(out / "summary.md", summary_markdown(rows))
     return [*paths, out / "summary.csv", out / "summary.md"]
-
-
-def main(argv: Sequence[str] | None = None, prog: str = "gentlerl plot") -> None:
-    """Write the figures and the summary table of the runs named on the command line."""
-    args = build_parser(prog).parse_args(argv)
-    found = find_runs(resolve_run_paths(args.runs, args.sweeps_out))
-    # A run that logged nothing yet (refused, or interrupted at once) would be a row of nan.
-    runs = [run for run in found if run.scalars]
-    empty = [str(run.path) for run in found if not run.scalars]
-    if empty:
-        print(f"{prog}: skipped {len(empty)} run(s) with nothing logged: {empty}", file=sys.stderr)
-    if not runs:
-        raise FileNotFoundError(f"none of the {len(found)} run(s) found has logged anything")
-    out = Path(args.out)
-    for path in write_figures(runs, out):
-        print(path)
-    print(format_table(summary_table(runs)))

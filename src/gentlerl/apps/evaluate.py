@@ -2,8 +2,8 @@
 
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
 ``best_policy.pt``, or a shipped policy of ``gentlerl export``). The actor runs without exploration
-noise in the env its run trained on (its ``env.kwargs``, so the same hand calibration), or on
-another task with ``--task`` or another calibration with ``--calibration`` (docs/CALIBRATION.md).
+noise in the env its run trained on (its ``env.kwargs``, so the same physics regime), or on
+another task with ``--task`` or another physics regime with ``--regime`` (docs/REGIMES.md).
 Prints the success rate, the broken rate and the median / p90 of the per-episode max impact (paper
 eq. 1, N); ``--episodes-csv`` also writes one row per episode (the columns of a run's
 ``eval_episodes.csv``, ``frames`` = the frames the policy trained for), which ``gentlerl plot``
@@ -23,8 +23,8 @@ from typing import IO
 import torch
 
 from gentlerl.apps.outputs import check_output_file
-from gentlerl.apps.parsing import command_parser
-from gentlerl.envs import CALIBRATIONS, TASKS, make_env
+from gentlerl.apps.parsing import add_renamed, command_parser
+from gentlerl.envs import REGIMES, TASKS, make_env
 from gentlerl.files import write_atomic
 from gentlerl.training.evaluation import summarize
 
@@ -34,13 +34,13 @@ def evaluate_policy(
     episodes: int,
     *,
     task: str | None = None,
-    calibration: str | None = None,
+    regime: str | None = None,
     seed: int = 0,
     episodes_csv: str | os.PathLike | None = None,
 ) -> dict[str, float]:
     """Load the policy at ``path`` and run ``episodes`` deterministic episodes (see module doc).
 
-    ``task`` / ``calibration``: ``None`` keeps the run's own. ``episodes_csv``: also write the
+    ``task`` / ``regime``: ``None`` keeps the run's own. ``episodes_csv``: also write the
     episodes there (:func:`write_episodes`). Returns ``task`` and the :func:`summarize` numbers.
     """
     from gentlerl.training.builders import default_env_factory
@@ -64,11 +64,11 @@ def evaluate_policy(
     state = load_checkpoint(path)
     cfg, actor = policy_from_state(state, path)
     env_kwargs = dict(cfg.env.kwargs)
-    if calibration is not None:
-        env_kwargs["calibration"] = calibration
+    if regime is not None:
+        env_kwargs["regime"] = regime
     if cfg.env.name is not None:  # an external env (env.name): the run's own, seeded here
-        if task is not None or calibration is not None:
-            raise ValueError(f"--task / --calibration apply to the hand, not to {cfg.env.name}")
+        if task is not None or regime is not None:
+            raise ValueError(f"--task / --regime apply to the hand, not to {cfg.env.name}")
         env_factory = partial(default_env_factory(cfg), seed=seed)
     else:
         env_factory = partial(make_env, task or cfg.task, **env_kwargs)
@@ -114,8 +114,9 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl evaluate") -> 
     parser.add_argument("--episodes", type=int, default=50, help="episodes to run")
     parser.add_argument("--task", choices=TASKS, help="task; None: the one the policy trained on")
     parser.add_argument(
-        "--calibration", choices=list(CALIBRATIONS), help="hand calibration; None: the policy's own"
+        "--regime", choices=list(REGIMES), help="the hand's physics regime; None: the policy's own"
     )
+    add_renamed(parser, "--calibration", "--regime (the hand's physics regime)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the block placements")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--episodes-csv", help="also write one row per episode to this CSV")
@@ -124,7 +125,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl evaluate") -> 
         args.policy,
         args.episodes,
         task=args.task,
-        calibration=args.calibration,
+        regime=args.regime,
         seed=args.seed,
         episodes_csv=args.episodes_csv,
     )

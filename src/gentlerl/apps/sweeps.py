@@ -148,7 +148,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl sweep") -> int
             signal.signal(sig, handler)
     print(f"{len(runs)} runs: {counts}")
     if args.figures and not args.dry_run:
-        from gentlerl.analysis.figures import main as plot
+        from gentlerl.apps.plot import main as plot
 
         plot([str(root), "-o", args.figures])
     return 1 if counts["failed"] else 0

@@ -1,4 +1,4 @@
-"""``gentlerl-train``: the hydra app that trains one run (``recipes/train.py`` runs the same app).
+"""``gentlerl-train``: the hydra app that trains one run (``gentlerl train`` runs the same app).
 
     gentlerl-train task=touch variant=r+rf+rsp seed=0
     gentlerl-train scale=paper replay.batch_size=64 gentleness.lam_prime=[2,3]

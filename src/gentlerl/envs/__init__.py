@@ -19,7 +19,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "gentlerl.envs.driver_env": ("DriverHandEnv",),
         "gentlerl.envs.environment": ("HandEnvironment",),
         "gentlerl.envs.factory": ("SUITE", "TASK_CLASSES", "TASKS", "make_dm_env", "make_env"),
-        "gentlerl.envs.hand": ("CALIBRATIONS", "Explore", "Fragile", "HandPhysics", "Touch"),
+        "gentlerl.envs.hand": ("REGIMES", "Explore", "Fragile", "HandPhysics", "Touch"),
         "gentlerl.envs.sim_driver": ("BioTacModel", "SimulatedDriver"),
         "gentlerl.envs.task_names": ("TASK_NAMES",),
         "gentlerl.envs.torchrl_env": ("HandEnv",),

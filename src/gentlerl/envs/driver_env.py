@@ -33,8 +33,8 @@ from gentlerl.envs.factory import TASK_CLASSES
 from gentlerl.envs.hand import FLAT_SIZE, OBS_SIZE, OBS_SLICES, Explore
 from gentlerl.envs.watchdog import ForceWatchdog
 
-if TYPE_CHECKING:  # envs/ sits left of transforms/: the calibration is only duck-typed here
-    from gentlerl.transforms.calibration import TouchCalibration
+if TYPE_CHECKING:  # envs/ sits left of transforms/: the sensor map is only duck-typed here
+    from gentlerl.transforms.sensor_map import TouchSensorMap
 
 # A fingertip counts as on the block when it senses more than this while the block sensor does.
 CONTACT_FORCE = 0.05
@@ -49,7 +49,7 @@ class DriverHandEnv(EnvBase):
 
     Each step: targets <- ``task.next_targets(targets, action)``; ``driver.command(targets)``
     (one 50 ms period); ``driver.read()`` (checked: shapes, finiteness); the raw tactile channels
-    are calibrated to newtons (after subtracting the baseline drift measured at reset, ``tare``)
+    are mapped to newtons (after subtracting the baseline drift measured at reset, ``tare``)
     and padded with zeros to the 3 simulated channels; the task judges success / broken exactly
     as in simulation. Without contact geometry, a fingertip is on the block when it senses
     > 0.05 N while the block sensor does (every sensing fingertip counts without a block sensor).
@@ -63,11 +63,11 @@ class DriverHandEnv(EnvBase):
     Args:
         driver: the hand.
         task: ``"explore"``, ``"touch"``, ``"fragile"`` or a task object (:mod:`gentlerl.envs.hand`).
-        calibration: a fitted :class:`TouchCalibration` for the driver's tactile channels.
+        sensor_map: a fitted :class:`TouchSensorMap` for the driver's tactile channels.
         watchdog: optional :class:`ForceWatchdog`.
         time_limit: control steps before truncation (200 = 10 s, as in simulation).
         tare: subtract each channel's reading at reset (hand open, nothing touched) from the
-            calibration's zero level, cancelling sensor drift since the fit.
+            sensor map's zero level, cancelling sensor drift since the fit.
         close_driver: :meth:`close` also closes the driver (False when envs share one driver).
         read_timeout: seconds a ``driver.read()`` may take (``None``: no limit). A step whose
             read stalls past it ends the episode as a watchdog trip does (terminated, the last
@@ -82,7 +82,7 @@ class DriverHandEnv(EnvBase):
         driver: HandDriver,
         task: str | Explore = "touch",
         *,
-        calibration: TouchCalibration,
+        sensor_map: TouchSensorMap,
         watchdog: ForceWatchdog | None = None,
         time_limit: int = 200,
         tare: bool = True,
@@ -93,21 +93,21 @@ class DriverHandEnv(EnvBase):
         super().__init__(device="cpu", batch_size=torch.Size([]))
         self.task = _make_task(task, task_kwargs)
         self.driver, self.driver_spec = driver, driver.spec
-        if calibration.shape != (N_SITES, self.driver_spec.tactile_channels):
+        if sensor_map.shape != (N_SITES, self.driver_spec.tactile_channels):
             raise ValueError(
-                f"calibration is for {calibration.shape} sites x channels; the driver reads "
+                f"sensor_map is for {sensor_map.shape} sites x channels; the driver reads "
                 f"{(N_SITES, self.driver_spec.tactile_channels)}"
             )
-        if not bool(calibration.fitted):
-            raise ValueError("calibration is not fitted: call fit(raw, force) or load it first")
-        calibration.validate()  # a NaN or flat map would blind the watchdog
+        if not bool(sensor_map.fitted):
+            raise ValueError("sensor_map is not fitted: call fit(raw, force) or load it first")
+        sensor_map.validate()  # a NaN or flat map would blind the watchdog
         if watchdog is not None and watchdog.block_limit and not self.driver_spec.has_block_force:
             raise ValueError("watchdog.block_limit is set but the driver has no block sensor")
         if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
             raise ValueError(
                 f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}"
             )
-        self.calibration, self.watchdog = calibration, watchdog
+        self.sensor_map, self.watchdog = sensor_map, watchdog
         self.read, self.read_timeouts = TimedRead(driver.read, read_timeout), 0
         self.time_limit, self.tare, self.close_driver = int(time_limit), tare, close_driver
         self.targets = np.zeros(len(self.driver_spec.target_low))
@@ -125,9 +125,9 @@ class DriverHandEnv(EnvBase):
 
     # -- one reading ----------------------------------------------------------------------------
     def _sense(self) -> tuple[np.ndarray, HandReading]:
-        """Read the driver; return the calibrated ``touch`` [5, 3] (N) and the checked reading."""
+        """Read the driver; return the mapped ``touch`` [5, 3] (N) and the checked reading."""
         reading = check_reading(self.read(), self.driver_spec)
-        force = self.calibration.forward_map(reading.tactile, self.offset).numpy()
+        force = self.sensor_map.forward_map(reading.tactile, self.offset).numpy()
         touch = np.zeros((N_SITES, CHANNELS))
         touch[:, : force.shape[-1]] = force
         return touch, reading
@@ -158,7 +158,7 @@ class DriverHandEnv(EnvBase):
         self.offset = None
         if self.tare:
             at_rest = check_reading(self.read(), self.driver_spec).tactile
-            self.offset = self.calibration.tare(at_rest)
+            self.offset = self.sensor_map.tare(at_rest)
         touch, reading = self._sense()
         self.touch, self.reading, self.steps = touch, reading, 0
         self.task.success = self.task.broken = False

@@ -17,14 +17,15 @@ from gentlerl.envs.assets import scene_xml
 from gentlerl.envs.batched import BatchedHandEnv
 from gentlerl.envs.environment import HandEnvironment
 from gentlerl.envs.hand import (
-    CALIBRATIONS,
     CONTROL_TIMESTEP,
-    DEFAULT_CALIBRATION,
+    DEFAULT_REGIME,
+    REGIMES,
     Explore,
     Fragile,
     HandPhysics,
     Touch,
 )
+from gentlerl.envs.task_names import RENAMED_KWARGS
 from gentlerl.envs.torchrl_env import HandEnv
 
 #: The hand tasks, by name: the one table :data:`SUITE`, :data:`TASKS` and
@@ -36,14 +37,14 @@ def _load(
     task_cls: type[Explore],
     time_limit: int,
     random: Any,
-    calibration: str = DEFAULT_CALIBRATION,
+    regime: str = DEFAULT_REGIME,
     **task_kwargs: Any,
 ) -> HandEnvironment:
-    if calibration not in CALIBRATIONS:
-        raise ValueError(
-            f"unknown calibration {calibration!r}; expected one of {list(CALIBRATIONS)}"
-        )
-    task_kwargs = {**CALIBRATIONS[calibration], **task_kwargs}
+    for old in task_kwargs.keys() & RENAMED_KWARGS:
+        raise TypeError(f"{old}= is now {RENAMED_KWARGS[old]}= (the hand's physics regime)")
+    if regime not in REGIMES:
+        raise ValueError(f"unknown regime {regime!r}; expected one of {list(REGIMES)}")
+    task_kwargs = {**REGIMES[regime], **task_kwargs}
     actuator_gain = task_kwargs.pop("actuator_gain")
     if not (isinstance(time_limit, int | np.integer) and time_limit >= 1):
         raise ValueError(f"time_limit must be an integer >= 1 (control steps), got {time_limit!r}")
@@ -91,10 +92,11 @@ def make_dm_env(
         task: one of :data:`TASKS`.
         seed: seeds the task's RandomState (block placement); same seed, same rollouts.
         **task_kwargs: ``time_limit`` (control steps of 50 ms before truncation, default 200)
-            ``calibration`` (a name in :data:`~gentlerl.envs.hand.CALIBRATIONS`: ``"paper"``, the
-            default, or ``"easy"``), whose values (``action_scale``, ``actuator_gain``,
-            ``block_gap``) single keyword arguments override, and the task's keyword arguments,
-            e.g. ``force_threshold=5.0``, ``break_impact=3.0``, ``randomize_block=True``,
+            ``regime`` (the hand's physics regime, a name in :data:`~gentlerl.envs.hand.REGIMES`:
+            ``"paper"``, the default, or ``"easy"``; ``calibration=``, its name before, is refused
+            naming it), whose values (``action_scale``, ``actuator_gain``, ``block_gap``) single
+            keyword arguments override, and the task's keyword arguments, e.g.
+            ``force_threshold=5.0``, ``break_impact=3.0``, ``randomize_block=True``,
             ``block_range=0.005``.
     """
     if task not in SUITE:
@@ -153,11 +155,11 @@ def _named_params(fn: Any) -> tuple[set[str], bool]:
 
 def env_kwarg_names(task: str) -> list[str]:
     """The keyword arguments ``make_env(task, seed=..., **kwargs)`` accepts as ``kwargs`` (the
-    calibration's fields, ``make_env``'s and the task class's keywords) for config validation."""
+    regime's fields, ``make_env``'s and the task class's keywords) for config validation."""
     if task not in TASK_CLASSES:
         raise ValueError(f"unknown task {task!r}; expected one of {list(TASKS)}")
     names = _named_params(make_env)[0] | _named_params(_load)[0]
-    names |= {key for fields in CALIBRATIONS.values() for key in fields}
+    names |= {key for fields in REGIMES.values() for key in fields}
     for cls in TASK_CLASSES[task].__mro__:
         if "__init__" in vars(cls):
             named, more = _named_params(cls.__init__)

@@ -25,19 +25,19 @@ BLOCK_POS = (1.0, 0.8124, 0.2111)
 # block along it.
 BLOCK_NORMAL = (0.0, float(np.sin(0.75)), float(np.cos(0.75)))
 
-#: Hand calibrations (``make_dm_env(..., calibration=NAME)``): action scale (fraction of each
+#: The hand's physics regimes (``make_dm_env(..., regime=NAME)``): action scale (fraction of each
 #: actuator's ctrl range per step), finger actuator gain (x gymnasium-robotics' kp and force
-#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``benchmarks/calibrate.py``
-#: (docs/CALIBRATION.md). ``paper`` puts the hand in the paper's regime: a naive full press breaks
+#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``experiments/regimes.py``
+#: (docs/REGIMES.md). ``paper`` puts the hand in the paper's regime: a naive full press breaks
 #: the fragile block (5 of 5 episodes, 8.2 N), uniformly random actions exceed 5 N in 74 % of the
 #: episodes that touch anything, and a gradual scripted press still succeeds without breaking it
 #: (max impact 1.0 N). ``easy`` is the earlier setting, where nothing breaks the block unless it
 #: tries hard (full press: 2.2 N, random actions never above 5 N).
-CALIBRATIONS: dict[str, dict[str, float]] = {
+REGIMES: dict[str, dict[str, float]] = {
     "paper": {"action_scale": 0.07, "actuator_gain": 3.0, "block_gap": 0.0},
     "easy": {"action_scale": 0.02, "actuator_gain": 3.0, "block_gap": 0.0},
 }
-DEFAULT_CALIBRATION = "paper"
+DEFAULT_REGIME = "paper"
 
 
 # Layout of the float32 observation buffer a task fills each step (one allocation per step):
@@ -112,7 +112,7 @@ class Explore(base.Task):
     def __init__(
         self,
         *,
-        action_scale: float = CALIBRATIONS[DEFAULT_CALIBRATION]["action_scale"],
+        action_scale: float = REGIMES[DEFAULT_REGIME]["action_scale"],
         randomize_block: bool = True,
         block_range: float = 0.005,
         block_pos: tuple[float, float, float] = BLOCK_POS,

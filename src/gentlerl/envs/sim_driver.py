@@ -1,8 +1,9 @@
 """``SimulatedDriver``: the MuJoCo hand behind the driver protocol, with BioTac-like sensors.
 
-It lets the whole real-robot path (driver -> calibration -> watchdog -> ``DriverHandEnv``) run and
+It lets the whole real-robot path (driver -> sensor map -> watchdog -> ``DriverHandEnv``) run and
 be tested without hardware. The touch grids' normal (and tangential) forces go through
-:class:`BioTacModel`, so the env sees raw sensor counts as a real hand would, and must calibrate.
+:class:`BioTacModel`, so the env sees raw sensor counts as a real hand would, and needs a fitted sensor map
+(:class:`~gentlerl.transforms.TouchSensorMap`).
 """
 
 from __future__ import annotations
@@ -80,7 +81,8 @@ class SimulatedDriver:
         seed: block placement, sensor parameters and noise (:meth:`seed`: placement and noise).
         tactile_channels: 1 (pressure, as the paper's BioTacs) to 3 (also the tangential ones).
         sensor: the sensor model (default :class:`BioTacModel` with ``seed``).
-        **task_kwargs: ``calibration`` (a name in ``gentlerl.envs.hand.CALIBRATIONS``),
+        **task_kwargs: ``regime`` (the hand's physics regime, a name in
+            ``gentlerl.envs.hand.REGIMES``),
             ``randomize_block``, ``block_range``, ``block_pos``.
     """
 
@@ -122,7 +124,7 @@ class SimulatedDriver:
         self.sensor.advance()
 
     def true_touch(self) -> np.ndarray:
-        """The simulated touch ``[5, 3]`` (N) the sensors see: the calibration's ground truth."""
+        """The simulated touch ``[5, 3]`` (N) the sensors see: the sensor map's ground truth."""
         return self.physics.touch()
 
     def block_force(self) -> float:
@@ -152,7 +154,7 @@ class SimulatedDriver:
 
 
 # Per fingertip, the actuators and directions that press it into the block (ff, mf, rf) or into
-# the palm (lf, th): a scripted calibration session loads every sensor.
+# the palm (lf, th): a scripted pressing session loads every sensor.
 PRESSES: tuple[dict[str, float], ...] = (
     {"A_FFJ2": 1.0},
     {"A_MFJ2": 1.0},
@@ -162,10 +164,11 @@ PRESSES: tuple[dict[str, float], ...] = (
 )
 
 
-def calibration_session(
+def pressing_session(
     driver: SimulatedDriver, rates: tuple[float, ...] = (0.01, 0.02, 0.04), hold: int = 10
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A scripted session: each fingertip in turn pressed and released at each ``rate``.
+    """A scripted session to fit a sensor map: each fingertip in turn pressed and released at each
+    ``rate``.
 
     A press moves the fingertip's :data:`PRESSES` actuators by ``rate`` x their range per control
     step to their limit, holds ``hold`` steps, and returns. Every step records the raw tactile

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-#: N: a calibrated force below minus this is a sensor fault, not a force.
+#: N: a mapped force (the sensor map's) below minus this is a sensor fault, not a force.
 NEGATIVE_TOLERANCE = 1.0
 
 
@@ -37,7 +37,7 @@ class ForceWatchdog:
     success force (5 N for touch), or success becomes impossible.
 
     Args:
-        fingertip_limit: N, compared with each fingertip's calibrated force summed over its
+        fingertip_limit: N, compared with each fingertip's mapped force summed over its
             channels (the ``touch`` row); ``None``: not watched.
         block_limit: N, compared with the block sensor's force; ``None``: not watched.
 
@@ -63,7 +63,7 @@ class ForceWatchdog:
         ``-NEGATIVE_TOLERANCE`` N) trips it too (``fault_trips``), as does a missing block force
         when ``block_limit`` is set.
 
-        ``touch``: ``[5, C]`` calibrated fingertip forces (N); ``block_force``: N or ``None``.
+        ``touch``: ``[5, C]`` fingertip forces from the sensor map (N); ``block_force``: N or ``None``.
         """
         self.checks += 1
         touch = np.asarray(touch, dtype=np.float64)

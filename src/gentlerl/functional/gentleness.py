@@ -91,7 +91,7 @@ def force_penalty(force: torch.Tensor, lam1: float = 2.0, lam2: float = 8.0) -> 
     the penalty's shape: forces well below :math:`\lambda_2` are almost free, above it each newton
     costs about one unit. The default :math:`\lambda = [2, 8]` lets the hand press as hard as the
     touch task needs (> 5 N normal; one flexing knuckle holds 6.6 N summed over channels when it
-    gets there slowly, cost 0.38) and charges hurrying (the same press at the paper calibration's
+    gets there slowly, cost 0.38) and charges hurrying (the same press at the paper regime's
     action scale arrives with 8.1 N: cost 4.4) and every newton past ~8 N (10 N: -9.8).
 
     Args:

@@ -162,7 +162,9 @@ def group_flat_config(values: dict[str, Any]) -> dict[str, Any]:
     ``penalty_v_max`` (the penalty head's top, null for none) becomes ``network.bounded_support``
     (null: false, else true). A name no group holds stays at the top level, where
     :func:`make_config` reports it. A field added since the config was saved and listed in
-    :data:`_BEFORE` gets the value that reproduces what that run trained (not today's default).
+    :data:`_BEFORE` gets the value that reproduces what that run trained (not today's default), and
+    a hand task keyword renamed since (``env.kwargs.calibration``) gets its new name
+    (:data:`~gentlerl.envs.task_names.RENAMED_KWARGS`).
     """
     if all(isinstance(values.get(group), dict) for group in GROUPS):
         return _with_earlier_behaviour(values)
@@ -200,6 +202,11 @@ def _with_earlier_behaviour(grouped: dict[str, Any]) -> dict[str, Any]:
     for (group, name), value in _BEFORE.items():
         if isinstance(out.get(group), dict):  # a group the saved config has, without the field
             out[group].setdefault(name, value)
+    env = out.get("env")
+    if isinstance(env, dict) and env.get("name") is None and isinstance(env.get("kwargs"), dict):
+        from gentlerl.envs.task_names import RENAMED_KWARGS  # the hand's keywords renamed since
+
+        env["kwargs"] = {RENAMED_KWARGS.get(k, k): v for k, v in env["kwargs"].items()}
     return out
 
 
@@ -260,9 +267,16 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
             )
         if env.kwargs and cfg.task in _task_names():
             from gentlerl.envs.factory import env_kwarg_names
+            from gentlerl.envs.task_names import RENAMED_KWARGS
 
             valid = env_kwarg_names(cfg.task)
             unknown = sorted(set(env.kwargs) - set(valid))
+            problems += [
+                f"env.kwargs.{k} is now env.kwargs.{RENAMED_KWARGS[k]} (the hand's physics regime)"
+                for k in unknown
+                if k in RENAMED_KWARGS
+            ]
+            unknown = [k for k in unknown if k not in RENAMED_KWARGS]
             if unknown:
                 problems.append(
                     f"env.kwargs {unknown} are not keywords of task {cfg.task!r}; valid: {valid}"

@@ -30,9 +30,10 @@ A variant's transforms, their models and the single-critic helpers (``SumRewards
 """
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
-from gentlerl.transforms.calibration import TouchCalibration
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ImpactPenalty, NonFiniteForceError
+from gentlerl.transforms.sensor_map import TouchSensorMap
+from gentlerl.transforms.sensor_map import refuse_renamed as __getattr__  # noqa: F401 (PEP 562)
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
@@ -49,6 +50,6 @@ __all__ = [
     "ModelRewardTransform",
     "PenaltySurprise",
     "TorquePenalty",
-    "TouchCalibration",
+    "TouchSensorMap",
     "TransitionTransform",
 ]

@@ -2,13 +2,13 @@
 # Reproduce the paper's three experiments, their figures and the final-policy evaluations that the
 # pre-registered criteria of docs/REPRODUCTION.md judge.
 #
-#   bash recipes/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
-#                             [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
-#                             [--policies DIR]  (default docs/policies for cpu/changes)
-#                             [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
-#                             [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
+#   bash recipes/grids/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
+#                                   [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
+#                                   [--policies DIR]  (default docs/policies for cpu/changes)
+#                                   [--only KEY=V1,V2 ...]  (part of each grid, e.g. --only seed=0,1)
+#                                   [--sweeps NAME,NAME]  (some of the three grids, e.g. fig4_touch)
 #
-# Grids (default hand calibration `paper`, docs/CALIBRATION.md):
+# Grids (default physics regime `paper`, docs/REGIMES.md):
 #   --scale cpu (recipes/sweeps/cpu/): no-reward exploration `rs`, `rf+rs`, `rf+rsp` x 3 seeds
 #     (9 runs); touch and fragile `r`, `r+rf`, `r+rf+rs`, `r+icm`, `r+rf+rsp` x 5 seeds (25 runs
 #     each); the primary lambda'_2 only (2 for touch and no reward, 1.5 for fragile): 59 runs of
@@ -42,7 +42,7 @@
 # Resumable: finished runs (DONE) are skipped, interrupted ones continue from their checkpoint;
 # final evaluations are redone (they take seconds per run).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 scale=cpu method=changes workers=2 out=runs/reproduce figures=docs/figures backend=local address=() policies="" only=()
 sweeps_run=fig3_noreward_impacts,fig4_touch,fig4_fragile

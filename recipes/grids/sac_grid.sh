@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # The SAC grid of docs/SAC.md: r and r+rf+rsp on touch and fragile, seeds 0-2, 30k frames each,
-# two runs at a time (one torch thread each), then the table. Re-running skips finished runs.
-# Usage: bash recipes/sac_grid.sh [--out DIR] [--workers N]
+# two runs at a time (one torch thread each), then the table with the pre-registered verdicts
+# (`gentlerl table sac`). Re-running skips finished runs.
+# Usage: bash recipes/grids/sac_grid.sh [--out DIR] [--workers N]
+# Not `gentlerl sweep`: a sweep's points are `gentlerl-train` runs, their keys TrainConfig fields
+# (checked against it before anything runs); recipes/sac_gentle.py is another program with its
+# own settings (SACConfig: lam_prime, total_frames, ...), so this loop runs its grid instead.
 set -euo pipefail
 out=runs/sac workers=2
 while [ $# -gt 0 ]; do
@@ -27,7 +31,7 @@ for task in touch fragile; do
       while [ "$(jobs -rp | wc -l)" -ge "$workers" ]; do wait -n || failed=1; done
       mkdir -p -- "$(dirname -- "$dir")"
       (
-        python "$here/sac_gentle.py" "task=$task" "variant=$variant" "seed=$seed" \
+        python "$here/../sac_gentle.py" "task=$task" "variant=$variant" "seed=$seed" \
           "lam_prime=$lam" "run_dir=$dir" >"$dir.log" 2>&1 ||
           { echo "failed: $dir: $(tail -n 1 -- "$dir.log")" >&2; exit 1; }
       ) &
@@ -35,5 +39,5 @@ for task in touch fragile; do
   done
 done
 while [ "$(jobs -rp | wc -l)" -gt 0 ]; do wait -n || failed=1; done
-python "$here/sac_table.py" "$out"
+python -m gentlerl table sac "$out"
 exit "$failed"

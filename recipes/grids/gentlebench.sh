@@ -2,21 +2,22 @@
 # GentleBench: the method on dm_control contact tasks nobody here wrote, the force read in the unit
 # of the force-tolerance rule (docs/GENTLEBENCH.md: criteria, rule, results).
 #
-#   bash recipes/gentlebench.sh [--workers N] [--out DIR] [--figures DIR] [--episodes N]
-#                               [--tasks finger_turn_easy,finger_spin,hopper_stand] [--only KEY=V1,V2 ...]
-#                               [--set KEY=VALUE ...]  (config overrides on every run, e.g. Method II:
-#                               --set gentleness.surprise_kind=information_gain
-#                               --set network.penalty_surprise_bound=3 --out runs/gentlebench-method2)
+#   bash recipes/grids/gentlebench.sh [--workers N] [--out DIR] [--figures DIR] [--episodes N]
+#                                     [--tasks finger_turn_easy,finger_spin,hopper_stand] [--only KEY=V1,V2 ...]
+#                                     [--set KEY=VALUE ...]  (config overrides on every run, e.g. Method II:
+#                                     --set gentleness.surprise_kind=information_gain
+#                                     --set network.penalty_surprise_bound=3 --out runs/gentlebench-method2)
 #
 # Grids: recipes/sweeps/gentlebench/gentlebench_<task>.yaml, each `r`, `r+rf`, `r+rf+rsp` x seeds
 # 0-2 at 30k env steps (30 episodes of 1000 steps; 5k random first, the curiosity rewards on after
 # 1k model updates, as the hand's cpu grids). Each file's env.force_scale is what
 # `gentlerl forces dm_control:<task> --episodes 20` prints for the rule. Then each final actor on
 # --episodes noise-free episodes (`gentlerl evaluate`, seed 0), each variant's seed-0 critics on
-# `gentlerl calibration`, and the figures and summary table of `gentlerl plot`.
+# `gentlerl calibration`, the figures and summary table of `gentlerl plot`, and the table with the
+# pre-registered verdicts (`gentlerl table gentlebench`).
 # Resumable: finished runs (DONE) are skipped; evaluations and calibrations are redone.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 workers=2 out=runs/gentlebench figures=figs/gentlebench episodes=10 only=() sets=()
 tasks=finger_turn_easy,finger_spin,hopper_stand
@@ -51,3 +52,4 @@ for task in ${tasks//,/ }; do
   done
   gentlerl plot "$out/gentlebench_$task" -o "$figures/$task"
 done
+gentlerl table gentlebench "$out"

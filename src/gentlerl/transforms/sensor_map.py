@@ -1,4 +1,4 @@
-"""``TouchCalibration``: raw tactile channels (sensor units) -> the simulated ``touch`` range (N).
+"""``TouchSensorMap``: raw tactile channels (sensor units) -> the simulated ``touch`` range (N).
 
 The paper's real hand reads the pressure channel of each BioTac and normalises it to the
 simulated touch sensors' range, so that the task thresholds (5 N touch, 3 N impact) and the
@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 import torch
@@ -79,12 +80,12 @@ def _check_channel(s: int, c: int, x: np.ndarray, y: np.ndarray) -> None:
         )
 
 
-class TouchCalibration(Transform):
+class TouchSensorMap(Transform):
     """Maps raw tactile channels ``[..., n_sites, n_channels]`` to forces in N, channel by channel.
 
     Fit it once from paired samples (:meth:`fit`), save it with the run (``state_dict`` or
     :meth:`save` / :meth:`load`), then hand it to :class:`~gentlerl.envs.DriverHandEnv` (which
-    calibrates every reading) or use it as a TorchRL transform on recorded data (reads
+    maps every reading) or use it as a TorchRL transform on recorded data (reads
     ``in_keys``, writes ``out_keys``). :meth:`inverse` maps forces back to raw units for plots.
 
     Args:
@@ -108,7 +109,7 @@ class TouchCalibration(Transform):
         if not (isinstance(n_knots, int) and n_knots >= 2):
             raise ValueError(f"n_knots must be an integer >= 2, got {n_knots!r}")
         super().__init__(
-            in_keys=in_keys or [keys.TACTILE], out_keys=out_keys or [keys.CALIBRATED_TACTILE]
+            in_keys=in_keys or [keys.TACTILE], out_keys=out_keys or [keys.TACTILE_FORCE]
         )
         self.shape = (n_sites, n_channels)
         self.register_buffer("raw_knots", torch.arange(n_knots).expand(*self.shape, -1).double())
@@ -121,12 +122,12 @@ class TouchCalibration(Transform):
         value = torch.as_tensor(value, dtype=torch.float64)
         if value.ndim < 2 or tuple(value.shape[-2:]) != self.shape:
             raise ValueError(
-                f"TouchCalibration is fitted on {self.shape[0]} sites x {self.shape[1]} channels; "
+                f"TouchSensorMap is fitted on {self.shape[0]} sites x {self.shape[1]} channels; "
                 f"{name} has shape {tuple(value.shape)}, expected [..., {self.shape[0]}, "
                 f"{self.shape[1]}]"
             )
         if not bool(self.fitted):
-            raise ValueError("TouchCalibration is not fitted: call fit(raw, force) or load it")
+            raise ValueError("TouchSensorMap is not fitted: call fit(raw, force) or load it")
         return value
 
     @torch.no_grad()
@@ -142,7 +143,7 @@ class TouchCalibration(Transform):
             raw: ``[N, n_sites, n_channels]`` raw readings.
             force: ``[N, n_sites, n_channels]`` reference forces (N) at the same instants.
             min_span: each channel's reference force must span at least this (N): a fingertip
-                that was never pressed during calibration cannot be calibrated.
+                that was never pressed while fitting cannot be mapped.
 
         Returns:
             ``rmse_N`` (over every sample and channel), ``rmse_pressed_N`` (over samples with a
@@ -170,7 +171,7 @@ class TouchCalibration(Transform):
             if span < min_span:
                 raise ValueError(
                     f"fingertip {s} channel {c}: the reference force spans "
-                    f"{span:.2f} N, needs >= {min_span} N; press that fingertip while calibrating"
+                    f"{span:.2f} N, needs >= {min_span} N; press that fingertip while fitting"
                 )
             _check_channel(s, c, x, y)
             order = np.argsort(x, kind="stable")
@@ -241,28 +242,29 @@ class TouchCalibration(Transform):
         os.replace(tmp, path)
 
     @classmethod
-    def load(cls, path: str | Path) -> TouchCalibration:
-        """A calibration written by :meth:`save`."""
+    def load(cls, path: str | Path) -> TouchSensorMap:
+        """A sensor map written by :meth:`save` (also one of a ``TouchCalibration``, its earlier name:
+        the file holds no class name)."""
         try:
             blob = torch.load(Path(path), weights_only=True)
             sizes = (*blob["shape"], blob["n_knots"])
             if len(sizes) != 3 or math.prod(sizes) > _MAX_KNOTS:
-                raise ValueError(f"sites x channels x knots {sizes} is not a hand's calibration")
-            calibration = cls(*blob["shape"], n_knots=blob["n_knots"])
-            calibration.load_state_dict(blob["state"])
+                raise ValueError(f"sites x channels x knots {sizes} is not a hand's sensor map")
+            sensor_map = cls(*blob["shape"], n_knots=blob["n_knots"])
+            sensor_map.load_state_dict(blob["state"])
         except FileNotFoundError:
             raise
         except Exception as err:  # noqa: BLE001 - truncated, empty, foreign: one clear error
             raise ValueError(
-                f"{path} is not a TouchCalibration file written by save() ({err})"
+                f"{path} is not a TouchSensorMap file written by save() ({err})"
             ) from None
-        if not bool(calibration.fitted):
-            raise ValueError(f"{path}: the calibration it holds was never fitted")
+        if not bool(sensor_map.fitted):
+            raise ValueError(f"{path}: the sensor map it holds was never fitted")
         try:
-            calibration.validate()
+            sensor_map.validate()
         except ValueError as err:
             raise ValueError(f"{path}: {err}") from None
-        return calibration
+        return sensor_map
 
     def validate(self) -> None:
         """Refuse a map that cannot be trusted by a safety check: non-finite knots, raw knots not
@@ -272,7 +274,7 @@ class TouchCalibration(Transform):
         for s, c in np.ndindex(self.shape):
             where = f"fingertip {s} channel {c}"
             if not bool(torch.isfinite(raw[s, c]).all() & torch.isfinite(force[s, c]).all()):
-                raise ValueError(f"{where}: calibration knots must be finite")
+                raise ValueError(f"{where}: sensor map knots must be finite")
             if not bool((raw[s, c].diff() > 0).all()):
                 raise ValueError(f"{where}: raw knots must be strictly increasing")
             if not bool((force[s, c].diff() >= 0).all()):
@@ -281,7 +283,16 @@ class TouchCalibration(Transform):
             if span < PRESSED_FORCE:
                 raise ValueError(
                     f"{where}: the map spans {span:.3g} N, needs >= {PRESSED_FORCE} N (a dead or "
-                    "inverted sensor, or a fingertip never pressed while calibrating)"
+                    "inverted sensor, or a fingertip never pressed while fitting)"
                 )
         if not bool(torch.isfinite(self.raw_zero).all()):
-            raise ValueError("calibration raw_zero must be finite")
+            raise ValueError("sensor map raw_zero must be finite")
+
+
+def refuse_renamed(name: str) -> NoReturn:
+    """:mod:`gentlerl.transforms`' module ``__getattr__`` (PEP 562): its earlier name for
+    :class:`TouchSensorMap` is refused in one line naming the new one ("calibration" names the
+    critics' check, ``gentlerl calibration``), any other missing name as Python does."""
+    if name == "TouchCalibration":
+        raise ImportError("gentlerl.transforms.TouchCalibration is now TouchSensorMap")
+    raise AttributeError(f"module 'gentlerl.transforms' has no attribute {name!r}")

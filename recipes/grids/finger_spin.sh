@@ -2,7 +2,7 @@
 # Gentleness beyond the hand: dm_control's finger-spin (TorchRL DMControlEnv) with the task reward
 # only (r), with the impact penalty (r+rf) and with penalty surprise (r+rf+rsp), 3 seeds each.
 #
-#   bash recipes/finger_spin.sh [--workers N] [--out DIR] [--figures DIR] [--only KEY=V1,V2 ...]
+#   bash recipes/grids/finger_spin.sh [--workers N] [--out DIR] [--figures DIR] [--only KEY=V1,V2 ...]
 #
 # The grid is recipes/sweeps/finger_spin.yaml: 9 runs of 50k env steps (10k random first),
 # ~14 min each on one core of a busy 2-core machine (62 env steps/s, r+rf+rsp), ~1-1.5 h with
@@ -16,7 +16,7 @@
 # Finger-spin has no success / broken outcome: evaluations are ranked by return, and the
 # summary's rows give each variant's return and its per-episode max impact (N).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 workers=2 out=runs/sweeps figures=figs/finger_spin only=()
 while (($#)); do

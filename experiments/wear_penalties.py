@@ -1,6 +1,6 @@
 """Wear penalties on touch: success, impacts, forces and actuator effort of each variant.
 
-    python benchmarks/wear_penalties.py [--frames 25000] [--seeds 0 1 2] [--calibration easy]
+    python experiments/wear_penalties.py [--frames 25000] [--seeds 0 1 2] [--regime easy]
                                         [--out runs/wear] [--no-train]
 
 Trains every variant of ``--variants`` (default: the paper's ``r+rf+rsp`` and the same plus the
@@ -38,7 +38,7 @@ def _train(variant: str, seed: int, args: argparse.Namespace) -> Path:
     run_dir = args.out / variant / f"seed{seed}"
     if not (run_dir / "DONE").exists():
         start = time.perf_counter()
-        env_kwargs = {"calibration": args.calibration} if args.calibration else {}
+        env_kwargs = {"regime": args.regime} if args.regime else {}
         cfg = make_config(
             task="touch",
             variant=variant,
@@ -121,7 +121,7 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=10)
     parser.add_argument("--episodes", type=int, default=10, help="final rollouts per run")
     parser.add_argument("--out", type=Path, default=Path("runs/wear"))
-    parser.add_argument("--calibration", help="hand calibration (default: the env's default)")
+    parser.add_argument("--regime", help="the hand's physics regime (default: the env's default)")
     parser.add_argument(
         "--no-train", action="store_true", help="only evaluate the runs that are finished"
     )

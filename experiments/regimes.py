@@ -1,4 +1,4 @@
-"""Probe the hand's calibration: how hard do naive, random and careful policies hit the block?
+"""Probe the hand's physics regimes: how hard do naive, random and careful policies hit the block?
 
 For each setting (action scale, finger actuator gain, block gap along the plate's normal) it runs:
 
@@ -12,7 +12,7 @@ For each setting (action scale, finger actuator gain, block gap along the plate'
 
 Impact is the paper's eq. 1 per fingertip, summed over the three channels; "max impact" is the
 episode's largest over fingertips and steps. Run:
-``python benchmarks/calibrate.py [--random-episodes 40] [--seed 0]``; prints a markdown table.
+``python experiments/regimes.py [--random-episodes 40] [--seed 0]``; prints a markdown table.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ TOUCHED = 0.05  # N: a reading above this counts as touching
 
 @dataclass(frozen=True)
 class Setting:
-    """One calibration: ``make_dm_env`` keyword arguments."""
+    """One physics regime: ``make_dm_env`` keyword arguments."""
 
     action_scale: float
     actuator_gain: float
