@@ -97,3 +97,37 @@ def test_the_actor_maximises_the_weighted_sum_of_its_heads():
     expected = plain["loss_actor"] - 2.0 * plain["value_penalty"]
     torch.testing.assert_close(weighted, expected, rtol=1e-5, atol=1e-5)
     assert loss.head_weights.tolist() == [1.0, 3.0]
+
+
+def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_path):
+    """multiplier=pid on the toy hand (episodes of 50 steps, impacts of 2 N per pressing step
+    against a tolerance of 0.5 N): the weight rises above 1, the actor's objective carries it,
+    it is logged, and a resumed run restores it before its first update."""
+    from gentlerl.training import Trainer
+    from tests.test_training_loop import read_scalar, tiny_config, toy_env
+
+    gentle = dict(tolerance=0.5, multiplier="pid", reward_delay=100, model_hidden=16)
+    cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=600, gentleness=gentle)
+    trainer = Trainer(cfg, toy_env)
+    trainer.run()
+    multiplier = trainer.rewards.multiplier
+    assert multiplier.episodes >= 10 and multiplier.weight > 1.0
+    assert trainer.learner.loss.head_weights.tolist() == [1.0, pytest.approx(multiplier.weight)]
+    logged = read_scalar(tmp_path / "run", "train/penalty_weight")
+    assert logged and logged[-1][1] == pytest.approx(multiplier.weight)
+    longer = tiny_config(
+        tmp_path / "run", variant="r+rf", total_frames=700, gentleness=gentle, resume=True
+    )
+    resumed = Trainer(longer, toy_env)
+    resumed._resume()
+    assert resumed.rewards.multiplier.state_dict() == multiplier.state_dict()
+    assert resumed.learner.loss.head_weights[1].item() == pytest.approx(multiplier.weight)
+
+
+def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(tmp_path):
+    from tests.test_training_loop import tiny_config
+
+    with pytest.raises(ValueError, match="weighs the penalty head, which variant=r lacks"):
+        tiny_config(tmp_path, variant="r", gentleness=dict(tolerance=1.0, multiplier="pid"))
+    with pytest.raises(ValueError, match="set gentleness.tolerance"):
+        tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier="pid"))
