@@ -8,6 +8,7 @@ import torch
 from gentlerl.functional import (
     impact_penalty,
     normalized_curiosity,
+    overshoot,
     pid_lagrangian,
     running_mean_update,
     tolerance_unit,
@@ -63,3 +64,11 @@ def test_the_pid_multiplier_by_hand():
 def test_the_pid_multiplier_refuses_a_negative_gain():
     with pytest.raises(ValueError, match="gains must be >= 0"):
         pid_lagrangian(1.0, 1.0, 0.0, 1.0, (1.0, -0.1, 0.0))
+
+
+def test_the_overshoot_is_doublings_above_the_tolerance_floored_at_half_of_it():
+    assert overshoot(2.0, 2.0) == 0.0
+    assert overshoot(8.0, 2.0) == 2.0  # two doublings
+    assert overshoot(1.0, 2.0) == overshoot(0.0, 2.0) == -1.0  # half or less, no contact
+    with pytest.raises(ValueError, match="tolerance must be a finite impact > 0"):
+        overshoot(1.0, 0.0)

@@ -71,14 +71,19 @@ def test_normalised_curiosity_is_the_nll_over_its_running_mean_on_contact_steps(
 
 
 def test_the_multiplier_by_hand():
-    """T = 2 N, gains (1, 0.1, 0), window 2: each episode's cost is the window's median / T."""
+    """T = 2 N, gains (1, 0.1, 0), window 2: each episode's cost is log2 of the window's median
+    over T (floored at T/2), its limit 0."""
     m = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=2)
     assert m.weight == 1.0  # the paper until an episode ends
-    assert m.observe([6.0]) == pytest.approx(1.0 + 2.0 + 0.2)  # J = 3, e = 2, I = 0.2
-    assert m.observe([2.0]) == pytest.approx(1.0 + 1.0 + 0.3)  # J = median(6, 2)/2 = 2: e = 1
-    # J = median(2, 1)/2 = 0.75: I = 0.275, mu = 0.025; then J = 0.5: I = 0.225, mu = 0
-    assert m.observe([1.0, 1.0]) == pytest.approx(1.0 + 0.0)
-    assert m.integral == pytest.approx(0.225) and m.scalars()["impact_cost"] == 0.5
+    e = math.log2(3.0)  # median 6 N: 3 tolerances
+    assert m.observe([6.0]) == pytest.approx(1.0 + e + 0.1 * e)
+    integral = 0.1 * e + 0.1 * 1.0  # median(6, 2) = 4 N: one doubling
+    assert m.observe([2.0]) == pytest.approx(1.0 + 1.0 + integral)
+    # median(2, 1) = 1.5 N: e = log2(0.75), mu = max(0, e + I) = 0; then median(1, 1) = 1 N,
+    # the floor T/2: e = -1
+    integral += 0.1 * math.log2(0.75) - 0.1
+    assert m.observe([1.0, 1.0]) == 1.0
+    assert m.integral == pytest.approx(integral) and m.scalars()["impact_cost"] == -1.0
     restored = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=2)
     restored.load_state_dict(m.state_dict())
     assert restored.observe([8.0]) == m.observe([8.0])
@@ -107,7 +112,7 @@ def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_pa
     from tests.test_training_loop import read_scalar, tiny_config, toy_env
 
     gentle = dict(tolerance=0.5, multiplier="pid", reward_delay=100, model_hidden=16)
-    cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=600, gentleness=gentle)
+    cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=900, gentleness=gentle)
     trainer = Trainer(cfg, toy_env)
     trainer.run()
     multiplier = trainer.rewards.multiplier
@@ -116,7 +121,7 @@ def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_pa
     logged = read_scalar(tmp_path / "run", "train/penalty_weight")
     assert logged and logged[-1][1] == pytest.approx(multiplier.weight)
     longer = tiny_config(
-        tmp_path / "run", variant="r+rf", total_frames=700, gentleness=gentle, resume=True
+        tmp_path / "run", variant="r+rf", total_frames=1000, gentleness=gentle, resume=True
     )
     resumed = Trainer(longer, toy_env)
     resumed._resume()

@@ -88,6 +88,7 @@ class GentlenessConfig:
         choices=MULTIPLIERS,
     )
     multiplier_gains: tuple[float, float, float] = setting(
-        (1.0, 0.1, 0.0), "PID gains [K_P, K_I, K_D] of multiplier=pid (error in tolerances)",
+        (1.0, 0.1, 0.0),
+        "PID gains [K_P, K_I, K_D] of multiplier=pid (error: doublings above the tolerance)",
         bounds=">= 0",
     )  # fmt: skip

@@ -2,6 +2,7 @@
 
 from gentlerl.functional.constraint import (
     normalized_curiosity,
+    overshoot,
     pid_lagrangian,
     running_mean_update,
     tolerance_unit,
@@ -32,6 +33,7 @@ __all__ = [
     "information_gain",
     "mixture_moments",
     "normalized_curiosity",
+    "overshoot",
     "penalty_surprise",
     "pid_lagrangian",
     "running_mean_update",

@@ -62,6 +62,17 @@ def normalized_curiosity(nll: float, scale: float, eps: float = 1e-6) -> float:
     return nll / max(scale, eps)
 
 
+def overshoot(impact: float, tolerance: float) -> float:
+    r"""The constraint's cost: :math:`\log_2(\max(q, T/2) / T)`, how many doublings the impact
+    :math:`q` lies above the tolerance :math:`T` (0 at it, 1 at twice it, -1 at half or below).
+
+    A ratio, so the PID gains need no unit; the floor keeps an episode without contact finite.
+    """
+    if not (math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
+    return math.log2(max(impact, tolerance / 2) / tolerance)
+
+
 def pid_lagrangian(
     cost: float,
     limit: float,
@@ -75,8 +86,8 @@ def pid_lagrangian(
         e_k = J_k - d, \quad I_k = \max(0, I_{k-1} + K_I e_k), \quad
         \mu_k = \max\bigl(0,\; K_P e_k + I_k + K_D \max(0, J_k - J_{k-1})\bigr)
 
-    ``cost`` :math:`J_k` and ``limit`` :math:`d` in one unit (here the episodes' max impact in
-    tolerances, :math:`d = 1`); ``gains`` :math:`(K_P, K_I, K_D)`. The integral only grows
+    ``cost`` :math:`J_k` and ``limit`` :math:`d` in one unit (here the episodes' max impact's
+    :func:`overshoot` of the tolerance, :math:`d = 0`); ``gains`` :math:`(K_P, K_I, K_D)`. The integral only grows
     while the cost is above its limit and is never negative (no wind-up below zero), the
     derivative term acts only on a rising cost. Returns ``(mu_k, I_k)``.
     """

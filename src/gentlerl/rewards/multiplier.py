@@ -6,8 +6,12 @@ agent's objective is :math:`w = 1 + \mu`, where :math:`\mu \ge 0` is a PID Lagra
 (Stooke et al. 2020; :func:`~gentlerl.functional.pid_lagrangian`) on the constraint "the episodes'
 max impact stays at the tolerance": after each finished episode,
 
-.. math:: J_k = \mathrm{median}(\text{max impact of the last } W \text{ episodes}) / T,
-   \qquad d = 1.
+.. math:: J_k = \log_2 \frac{\max(q_k, T/2)}{T}, \quad
+   q_k = \mathrm{median}(\text{max impact of the last } W \text{ episodes}), \qquad d = 0:
+
+the error is the factor by which the episodes overshoot the tolerance, in doublings (a ratio
+has no unit, so one set of gains serves every env), and an episode at half the tolerance or
+below counts as -1 (no contact at all would otherwise be :math:`-\infty`).
 
 A multi-critic agent (gentlerl's D4PG) puts :math:`w` on the penalty head in its actor's
 objective (``MultiHeadD4PGLoss.set_head_weight``); the critics keep learning the unweighted
@@ -23,7 +27,7 @@ from collections import deque
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from gentlerl.functional import pid_lagrangian
+from gentlerl.functional import overshoot, pid_lagrangian
 
 #: Finished episodes whose median max impact is the constraint's cost.
 WINDOW = 10
@@ -34,7 +38,7 @@ class ImpactMultiplier:
 
     Args:
         tolerance: :math:`T`, the impact one step may deal (the unit of the observed impacts).
-        gains: :math:`(K_P, K_I, K_D)` on the error in tolerances.
+        gains: :math:`(K_P, K_I, K_D)` on the error in doublings above the tolerance.
         window: :data:`WINDOW` episodes by default.
     """
 
@@ -64,16 +68,16 @@ class ImpactMultiplier:
             if not math.isfinite(impact) or impact < 0:
                 raise ValueError(f"an episode's max impact must be finite and >= 0, got {impact}")
             self.recent.append(float(impact))
-            cost = statistics.median(self.recent) / self.tolerance
+            cost = overshoot(statistics.median(self.recent), self.tolerance)
             self.multiplier, self.integral = pid_lagrangian(
-                cost, 1.0, self.integral, self.cost, self.gains
+                cost, 0.0, self.integral, self.cost, self.gains
             )
             self.cost = cost
             self.episodes += 1
         return self.weight
 
     def scalars(self) -> dict[str, float]:
-        """What a run logs: the weight, the multiplier's integral and the cost in tolerances."""
+        """What a run logs: the weight, the multiplier's integral and the cost (doublings)."""
         return {
             "penalty_weight": self.weight,
             "multiplier_integral": self.integral,

@@ -156,8 +156,8 @@ class Trainer:
     def _steer(self, episodes: list[dict[str, float]], logger: RunLogger) -> None:
         """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``)."""
         multiplier = self.rewards.multiplier
-        if multiplier is None or not episodes:
-            return
+        if multiplier is None or not episodes or not self._learning():
+            return  # the policy's episodes only: not those of the first random actions
         weight = multiplier.observe(e["max_impact"] for e in episodes)
         self.learner.loss.set_head_weight(keys.PENALTY, weight)
         logger.log(

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Method III grid (docs/GENTLEBENCH.md, "Method III amendment": criteria written before the runs):
+# per task, `r` and the paper's `r+rf+rsp` under the stated tolerance, then the steered pair
+# (gentleness.multiplier=pid, curiosity_norm=true): `r+rf` (the constrained baseline) and
+# `r+rf+rsp` (the new method); 3 seeds, 30k env steps, one setting for every task (only the
+# tolerance differs, in each sweep file). Then each final actor on --episodes noise-free episodes
+# (`gentlerl evaluate`, seed 0) and the table (`gentlerl table method3`).
+#
+#   bash recipes/grids/method3.sh [--workers N] [--out DIR] [--episodes N]
+#                                 [--tasks finger_turn_easy,touch,fragile]
+# Resumable: finished runs (DONE) are skipped; evaluations are redone.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+workers=2 out=runs/method3 episodes=10 tasks=finger_turn_easy,touch,fragile
+while (($#)); do
+  case "$1" in
+    --workers) workers=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    --episodes) episodes=$2; shift 2 ;;
+    --tasks) tasks=$2; shift 2 ;;
+    *) echo "unknown argument $1" >&2; exit 2 ;;
+  esac
+done
+
+budget=(--set collector.total_frames=30000 --set collector.init_random_frames=5000
+  --set gentleness.reward_delay=1000 --set logging.eval_episodes=5
+  --set logging.checkpoint_buffer=false --set logging.checkpoint_every_frames=10000
+  --set logging.progress=false --set logging.wandb_mode=disabled)
+for task in ${tasks//,/ }; do
+  case "$task" in
+    touch|fragile) per=(--set logging.eval_every_frames=5000 --set collector.num_envs=1) ;;
+    *) per=(--set logging.eval_every_frames=10000) ;;
+  esac
+  for kind in "" _steered; do
+    gentlerl sweep "recipes/sweeps/method3/method3_$task$kind.yaml" --workers "$workers" \
+      --out "$out" "${budget[@]}" "${per[@]}"
+  done
+done
+for task in ${tasks//,/ }; do
+  for run in "$out/method3_$task"*/*/; do
+    [ -f "$run/DONE" ] || continue
+    gentlerl evaluate "$run/checkpoint.pt" --episodes "$episodes" --json \
+      --episodes-csv "$run/final_eval_episodes.csv" > "$run/final_eval.json"
+  done
+done
+gentlerl table method3 "$out"
