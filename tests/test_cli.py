@@ -46,7 +46,7 @@ def test_top_level_help_lists_every_command(capsys):
         ("video", ["(default: rollout.mp4)", "(default: 240)", "(default: 2)", "(default: 20)"]),
         ("evaluate", ["default: 50", "{explore,touch,fragile}", "default: 0"]),
         ("export", ["(default: docs/policies)", "(default: ['touch', 'fragile'])"]),
-        ("table", ["{sac,gentlebench}", "the grid's --out folder"]),
+        ("table", ["{sac,gentlebench,method3}", "the grid's --out folder"]),
     ],
 )
 def test_each_command_help_shows_its_options_with_defaults(capsys, command, defaults):

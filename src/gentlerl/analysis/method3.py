@@ -1,0 +1,121 @@
+"""The Method III grid's table (docs/GENTLEBENCH.md, "Method III amendment";
+``recipes/grids/method3.sh``): per task, ``r``, the paper's ``r+rf+rsp``, the new method and the
+constrained baseline side by side, in the safe-RL benchmarks' form, with the pre-registered tests
+(:func:`gentlerl.analysis.criteria.method3_verdicts`).
+
+Reads each run's final actor's episodes (``final_eval_episodes.csv``, written by ``gentlerl
+evaluate``), its config, its ``train/penalty_surprise_per_contact_step`` and
+``train/penalty_weight`` scalars (:mod:`gentlerl.analysis.runs`).
+"""
+
+from __future__ import annotations
+
+import csv
+import statistics
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gentlerl.analysis.criteria import METHOD3_VARIANTS, method3_verdicts
+from gentlerl.analysis.runs import Run, find_runs
+
+#: The frames at the end of a run over which r^sp per contact step is averaged.
+LAST_FRAMES = 10_000
+
+
+def method3_label(run: Run) -> str:
+    """``r``, ``r+rf+rsp`` (the paper under the tolerance rule), ``new`` or ``baseline``."""
+    steered = run.setting("gentleness", "multiplier", "none") != "none"
+    if not steered:
+        return run.variant
+    return "new" if "rsp" in run.variant else "baseline"
+
+
+def _tail_mean(run: Run, name: str) -> float:
+    frames, values = run.scalars.get(name, (np.zeros(0), np.zeros(0)))
+    if not len(frames):
+        return float("nan")
+    return float(values[frames >= frames[-1] - LAST_FRAMES].mean())
+
+
+def seed_result(run: Run) -> dict[str, Any]:
+    """One run: its final actor's episodes' max impacts (N), returns and successes, its r^sp per
+    contact step at the end and its penalty weight's trajectory."""
+    with (run.path / "final_eval_episodes.csv").open() as f:
+        rows = list(csv.DictReader(f))
+
+    def column(name: str) -> np.ndarray:
+        return np.array([float(row.get(name) or "nan") for row in rows])
+
+    weights = run.scalars.get("train/penalty_weight", (np.zeros(0), np.zeros(0)))
+    return {
+        "seed": int(run.config["seed"]),
+        "impacts": column("max_impact") / float(run.setting("env", "force_scale", 1.0)),
+        "returns": column("return"),
+        "success": column("success"),
+        "rsp_per_contact": _tail_mean(run, "train/penalty_surprise_per_contact_step"),
+        "weights": weights,
+    }
+
+
+def method3_row(seeds: list[dict[str, Any]], hand: bool) -> dict[str, Any]:
+    """One (task, variant) row: the score (success on the hand, return off it) as the mean over
+    seeds of each run's mean and its std; the median and p90 max impact over every episode and
+    the std of the per-run medians; r^sp per contact step (median over seeds)."""
+    scores = [float(np.mean(s["success"] if hand else s["returns"])) for s in seeds]
+    impacts = np.concatenate([s["impacts"] for s in seeds])
+    medians = [float(np.median(s["impacts"])) for s in seeds]
+    rsp = [s["rsp_per_contact"] for s in seeds if np.isfinite(s["rsp_per_contact"])]
+    return {
+        "seeds": len(seeds),
+        "scores": scores,
+        "score": statistics.mean(scores),
+        "score_std": statistics.pstdev(scores),
+        "median_impact": float(np.median(impacts)),
+        "impact_std": statistics.pstdev(medians),
+        "p90_impact": float(np.percentile(impacts, 90)),
+        "rsp_per_contact": statistics.median(rsp) if rsp else float("nan"),
+    }
+
+
+def load_method3(root: Path) -> dict[str, dict[str, dict[str, Any]]]:
+    """task -> label -> its row (:func:`method3_row`), from the runs under ``root`` that have a
+    ``final_eval_episodes.csv``."""
+    grouped: dict[str, dict[str, list]] = {}
+    for run in find_runs([root]):
+        if not (run.path / "final_eval_episodes.csv").is_file():
+            continue
+        task = str(run.task).split(":", 1)[-1]
+        grouped.setdefault(task, {}).setdefault(method3_label(run), []).append(seed_result(run))
+    if not grouped:
+        raise FileNotFoundError(f"no run with a final_eval_episodes.csv under {root}")
+    return {
+        task: {
+            label: method3_row(sorted(seeds, key=lambda s: s["seed"]), task in ("touch", "fragile"))
+            for label, seeds in labels.items()
+        }
+        for task, labels in sorted(grouped.items())
+    }
+
+
+def method3_table(root: Path) -> str:
+    """The markdown table, then each pre-registered test's verdict."""
+    rows = load_method3(root)
+    lines = [
+        "| task | variant | success or return ± std (per seed) | median max impact ± std, p90 "
+        "(N) | r^sp per contact step |",
+        "| --- | --- | --- | --- | ---: |",
+    ]
+    for task, labels in rows.items():
+        for label in (v for v in METHOD3_VARIANTS if v in labels):
+            r = labels[label]
+            per_seed = " / ".join(f"{x:.2f}" for x in r["scores"])
+            lines.append(
+                f"| {task} | `{label}` | {r['score']:.2f} ± {r['score_std']:.2f} ({per_seed}) | "
+                f"{r['median_impact']:.2f} ± {r['impact_std']:.2f}, {r['p90_impact']:.2f} | "
+                f"{r['rsp_per_contact']:.2f} |"
+            )
+    lines.append("")
+    lines += [f"- **{name}**: {verdict}" for name, verdict in method3_verdicts(rows).items()]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,72 @@
+"""The Method III table and its pre-registered tests (docs/GENTLEBENCH.md), on synthetic runs."""
+
+import pytest
+import yaml
+
+from gentlerl import cli
+from gentlerl.analysis.criteria import method3_equal_impact, method3_verdicts
+
+
+def _row(score: float, impact: float, rsp: float = 1.0) -> dict[str, float]:
+    return {"score": score, "median_impact": impact, "rsp_per_contact": rsp}
+
+
+@pytest.mark.parametrize(
+    ("new", "baseline", "verdict"),
+    [
+        (_row(1.0, 2.0), _row(0.9, 2.0), "holds"),
+        (_row(0.8, 2.4), _row(0.9, 2.0), "does not hold"),  # 1.2x the impact: equal enough
+        (_row(1.0, 2.6), _row(0.9, 2.0), "not at equal impact"),  # 1.3x
+    ],
+)
+def test_b_compares_scores_only_at_about_equal_impact(new, baseline, verdict):
+    assert method3_equal_impact(new, baseline).startswith(verdict)
+
+
+def test_the_tests_by_hand():
+    rows = {
+        "touch": {"new": _row(0.97, 2.9, rsp=1.0), "baseline": _row(0.5, 1.0)},
+        "fragile": {"new": _row(0.7, 1.5)},
+        "finger-turn_easy": {"r": _row(300.0, 40.0), "new": _row(250.0, 19.0, rsp=2.5)},
+    }
+    out = method3_verdicts(rows)
+    assert out["H1 touch"].startswith("holds")
+    assert out["H2 fragile"] == "does not hold (0.70)"
+    assert out["F1 finger-turn_easy"].startswith("holds")  # 250 >= 240, 19 <= 20
+    assert out["B touch"].startswith("not at equal impact")
+    assert out["N curiosity size"] == "does not hold (finger / touch = 2.50)"
+    assert "B fragile" not in out  # no baseline row: no test
+
+
+def _run(root, name, config, episodes, rsp=None):
+    run = root / name
+    (run / "logs" / "scalars" / "train").mkdir(parents=True)
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    rows = ["frames,episode,success,broken,max_impact,return"]
+    rows += [f"0,{i},{s},0,{m},{r}" for i, (s, m, r) in enumerate(episodes)]
+    (run / "final_eval_episodes.csv").write_text("\n".join(rows) + "\n")
+    if rsp is not None:
+        csv = "\n".join(f"{f},{v}" for f, v in rsp) + "\n"
+        (run / "logs" / "scalars" / "train" / "penalty_surprise_per_contact_step.csv").write_text(
+            csv
+        )
+
+
+def test_the_table_labels_the_four_rows_and_prints_the_tests(tmp_path, capsys):
+    for seed in range(2):
+        base = {"task": "touch", "seed": seed, "env": {"name": None, "force_scale": 1.0}}
+        plain = {**base, "gentleness": {"multiplier": "none"}}
+        steered = {**base, "gentleness": {"multiplier": "pid"}}
+        _run(tmp_path, f"r{seed}", {**plain, "variant": "r"}, [(1, 6.0, 1.0), (1, 8.0, 1.0)])
+        _run(tmp_path, f"n{seed}", {**steered, "variant": "r+rf+rsp"},
+             [(1, 2.0, 1.0), (seed, 3.0, 1.0)], rsp=[(0, 9.0), (20_000, 3.0), (30_000, 1.0)])  # fmt: skip
+        _run(tmp_path, f"b{seed}", {**steered, "variant": "r+rf"}, [(0, 1.0, 0.0)] * 2)
+    assert cli.main(["table", "method3", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "| touch | `r` | 1.00 ± 0.00 (1.00 / 1.00) | 7.00 ± 0.00, 8.00 | nan |" in out
+    # success 0.5 and 1.0; impacts 2, 3 per seed: median 2.5 (std 0); r^sp over the last 10k
+    # frames: (3 + 1) / 2 = 2
+    assert "| touch | `new` | 0.75 ± 0.25 (0.50 / 1.00) | 2.50 ± 0.00, 3.00 | 2.00 |" in out
+    assert "| touch | `baseline` | 0.00 ± 0.00 (0.00 / 0.00) |" in out
+    assert "- **H1 touch**: does not hold (success 0.75 at 2.50 N)" in out
+    assert "- **B touch**: not at equal impact" in out
