@@ -17,7 +17,8 @@ from gentlerl.training.builders import (
     collection_env_factory,
     default_env_factory,
 )
-from gentlerl.training.config import group_flat_config, iter_fields
+from gentlerl.training.config import iter_fields
+from gentlerl.training.migration import group_flat_config
 from gentlerl.transforms import DynamicsSurprise
 from tests.toy_env import ToyHandEnv
 
@@ -247,7 +248,8 @@ def test_dynamics_surprise_is_scaled_down_at_cpu_scale_only(scale, factor):
 def test_a_checkpoint_config_with_the_old_name_of_rescore_surprise_keeps_its_value():
     """``gentleness.recompute_surprise`` (the field's name before "rescore" became the one verb)
     loads as ``rescore_surprise`` with the value it was saved with, not today's default."""
-    from gentlerl.training.config import group_flat_config, make_config
+    from gentlerl.training.config import make_config
+    from gentlerl.training.migration import group_flat_config
 
     saved = make_config().to_dict()
     del saved["gentleness"]["rescore_surprise"]
@@ -255,3 +257,21 @@ def test_a_checkpoint_config_with_the_old_name_of_rescore_surprise_keeps_its_val
     grouped = group_flat_config(saved)
     assert "recompute_surprise" not in grouped["gentleness"]
     assert grouped["gentleness"]["rescore_surprise"] is False
+
+
+def test_help_marks_the_ablation_knobs_the_reproduction_grid_switches():
+    """Every key an ablation of recipes/grids/reproduce.sh sets is marked ``[ablation]`` in
+    ``--help`` (the support's bounds excepted: they are the regime's, not an ablation's), and
+    nothing else is."""
+    import re
+    from pathlib import Path
+
+    script = (Path(__file__).resolve().parents[1] / "recipes/grids/reproduce.sh").read_text()
+    ablations = script[script.index('case "$method" in') :]
+    switched = set(re.findall(r"--set ((?:gentleness|network|learner)\.\w+)=", ablations))
+    switched -= {"network.v_min", "network.v_max"}
+    marked = {
+        line.split("=")[0].strip() for line in describe().splitlines() if "[ablation]" in line
+    }
+    assert switched and switched <= marked
+    assert marked == {name for name, f in iter_fields() if f.metadata.get("ablation")}

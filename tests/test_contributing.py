@@ -59,7 +59,7 @@ def test_the_names_the_change_table_points_to_are_defined_there() -> None:
         "COMPONENTS": "gentlerl.rewards.variants",
         "VARIANTS": "gentlerl.rewards.variants",
         "make_collector": "gentlerl.training.builders",
-        "_BEFORE": "gentlerl.training.config",
+        "_BEFORE": "gentlerl.training.migration",
         "command_parser": "gentlerl.apps.parsing",
         "COMMANDS": "gentlerl.cli",
         "ray_problems": "gentlerl.distributed.collector",

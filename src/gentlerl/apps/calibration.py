@@ -46,7 +46,8 @@ def fields_not_saved(saved_config: dict[str, Any]) -> list[str]:
     """The config fields of this gentlerl that a checkpoint's ``saved_config`` lacks: they get
     today's defaults when it is loaded, which may build other critics than the run trained (the
     critics' supports come from the config and are not saved with their weights)."""
-    from gentlerl.training.config import group_flat_config, iter_fields
+    from gentlerl.training.config import iter_fields
+    from gentlerl.training.migration import group_flat_config
 
     grouped = group_flat_config(saved_config)
     saved = {f"{g}.{name}" for g, v in grouped.items() if isinstance(v, dict) for name in v}

@@ -65,6 +65,7 @@ def setting(
     choices: Choices = None,
     bounds: str | None = None,
     resumable: bool = False,
+    ablation: bool = False,
 ) -> Any:
     """A dataclass field carrying everything known about it as metadata.
 
@@ -76,12 +77,15 @@ def setting(
             a field that may be null; for a list field, each of its values).
         resumable: a resumed run may change it (how long and how fast it goes on, what it
             logs); the other fields shape the saved networks, buffers or rewards.
+        ablation: a knob that switches one of gentlerl's changes to the paper off (or a
+            variant of it) for an ablation; ``--help`` marks it ``[ablation]``.
     """
     meta = {
         "help": help,
         "choices": choices,
         "bounds": Range.parse(bounds) if bounds is not None else None,
         "resumable": resumable,
+        "ablation": ablation,
     }
     if isinstance(default, dict | list):
         return field(default_factory=lambda: type(default)(default), metadata=meta)

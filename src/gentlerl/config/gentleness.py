@@ -50,22 +50,25 @@ class GentlenessConfig:
     # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
     # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
     dynamics_surprise_scale: float = setting(
-        0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0"
+        0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0", ablation=True
     )
     # Measured (docs/REPRODUCTION.md, fifth amendment): with supports per head and r^sp
     # recomputed at sampling, the fragile probe ended at 1.00 without a floor and 0.85 with 0;
     # the NLL of contact steps stayed near +1 at 30k frames either way.
     surprise_nll_floor: float | None = setting(
-        None, "floor of the penalty-surprise NLL (null: eq. 8)"
+        None, "floor of the penalty-surprise NLL (null: eq. 8)", ablation=True
     )
     surprise_kind: str = setting(
         "nll",
         "what r^sp's curiosity reads: nll (eq. 8) or information_gain (the penalty ensemble's "
         "disagreement, which fades as it learns)",
         choices=("nll", "information_gain"),
+        ablation=True,
     )
     rescore_surprise: bool = setting(
-        True, "recompute r^sp of each sampled n-step transition with the current target model"
+        True,
+        "recompute r^sp of each sampled n-step transition with the current target model",
+        ablation=True,
     )
     icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")
     # Method III (beyond the paper; docs/GENTLEBENCH.md): one stated tolerance, no per-env tuning.

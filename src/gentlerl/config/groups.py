@@ -168,7 +168,7 @@ class LearnerConfig:
         0.0, "TD3 target policy smoothing std (0: D4PG)", bounds=">= 0", resumable=True
     )
     episodic_intrinsic: bool = setting(
-        False, "cut the curiosity heads' bootstrap at termination too"
+        False, "cut the curiosity heads' bootstrap at termination too", ablation=True
     )
     compile: bool = setting(
         False, "torch.compile the learner's update (the first updates compile it)"
@@ -198,7 +198,7 @@ class NetworkConfig:
     v_min: float = setting(-10.0, "bottom of every head's support")
     v_max: float = setting(10.0, "top of every head's support")
     bounded_support: bool = setting(
-        True, "cap a head's v_max at its reward's bound (0 for penalties)"
+        True, "cap a head's v_max at its reward's bound (0 for penalties)", ablation=True
     )
     # Measured at the cpu scale (touch, r+rf+rsp, paper hand): realised discounted penalty returns
     # of -24 to -33 per episode start, outside [-10, 10]; r^sp ~1 per contact step. 1 x the
@@ -208,6 +208,7 @@ class NetworkConfig:
         "per-step size of the dense rewards (penalty, curiosity): their heads span +-it x "
         "(1 - gamma^T) / (1 - gamma); null: every head gets [v_min, v_max]",
         bounds="> 0",
+        ablation=True,
     )
     penalty_surprise_bound: float | None = setting(
         None,
@@ -215,6 +216,7 @@ class NetworkConfig:
         "dense_reward_bound. A cap on the value of curiosity: 3 (uncapped on the hand) drops "
         "30k fragile from 1.00 to 0.30 (docs/REPRODUCTION.md, ninth amendment)",
         bounds="> 0",
+        ablation=True,
     )
 
 

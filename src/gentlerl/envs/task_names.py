@@ -7,5 +7,5 @@
 TASK_NAMES: tuple[str, ...] = ("explore", "touch", "fragile")
 
 #: Task keywords renamed since runs were saved, old -> new: a saved config's are moved on load
-#: (:func:`gentlerl.training.config.group_flat_config`), one typed today is refused naming the new.
+#: (:func:`gentlerl.training.migration.group_flat_config`), one typed today is refused naming the new.
 RENAMED_KWARGS: dict[str, str] = {"calibration": "regime"}

@@ -24,7 +24,8 @@ from torchrl.data import ReplayBuffer
 from gentlerl.data.prioritized import FlatPriorityTree
 from gentlerl.files import write_atomic
 from gentlerl.models import make_actor
-from gentlerl.training.config import TrainConfig, group_flat_config, make_config
+from gentlerl.training.config import TrainConfig, make_config
+from gentlerl.training.migration import group_flat_config
 from gentlerl.training.policy_weights import actor_weights_problem
 from gentlerl.training.state_checks import replay_state_problem
 
@@ -180,7 +181,7 @@ def check_critic_supports(
     ``critic`` built from the config: their logits would be read on the wrong atoms.
 
     A checkpoint saved before supports were saved has no ``"supports"``; its config is read with
-    the behaviour of its time (:func:`~gentlerl.training.config.group_flat_config`).
+    the behaviour of its time (:func:`~gentlerl.training.migration.group_flat_config`).
     """
     saved = state.get("supports")
     if saved is None:
@@ -235,7 +236,7 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
 
     ``path`` is a run's ``checkpoint.pt`` (the last actor), ``best_policy.pt`` (the actor of its
     best evaluation) or a file of :func:`export_policy`, also one saved with the flat config of
-    older versions (:func:`~gentlerl.training.config.group_flat_config`).
+    older versions (:func:`~gentlerl.training.migration.group_flat_config`).
 
     Rebuild the env with ``gentlerl.envs.make_env(cfg.task, seed=..., **cfg.env.kwargs)``.
     """

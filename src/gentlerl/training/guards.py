@@ -25,7 +25,8 @@ from gentlerl.config.fields import resumable
 from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
 from gentlerl.files import load_yaml
 from gentlerl.training.checkpoint import load_checkpoint
-from gentlerl.training.config import TrainConfig, group_flat_config
+from gentlerl.training.config import TrainConfig
+from gentlerl.training.migration import group_flat_config
 from gentlerl.transforms.impact import NonFiniteForceError
 
 #: Fields a resumed run may change (declared ``resumable``): how long and how fast it goes on, and

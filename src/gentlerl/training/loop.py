@@ -48,13 +48,15 @@ from gentlerl.training.run_lock import RunLock
 
 
 class Trainer:
-    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train` (which passes
-    the env it probed as ``probe``; without one the env is probed here)."""
+    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train`, which
+    validates the config and probes the env once and passes the probe; without one, both are
+    done here."""
 
     def __init__(
         self, cfg: TrainConfig, env_factory: EnvFactory | None = None, probe: EnvBase | None = None
     ) -> None:
-        validate(cfg)
+        if probe is None:  # built directly, not by train(), which has checked and probed
+            validate(cfg)
         self.cfg, self.layout = cfg, RunLayout(cfg.run_dir)
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = probe if probe is not None else probe_env(cfg, self.env_factory)
