@@ -5,7 +5,7 @@ policy file keeps (config, sizes, actor)."""
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from gentlerl import keys
 from gentlerl.agent.learner import TrainingState
@@ -18,8 +18,8 @@ from gentlerl.training.checkpoint import (
 )
 from gentlerl.training.seeding import rng_state, set_rng_state
 
-if TYPE_CHECKING:
-    from gentlerl.training.loop import Trainer
+#: A :class:`~gentlerl.training.loop.Trainer` (not imported: the loop imports this module).
+Trainer = Any
 
 
 def policy_state(trainer: Trainer) -> dict[str, Any]:
