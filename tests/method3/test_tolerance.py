@@ -136,3 +136,14 @@ def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(
         tiny_config(tmp_path, variant="r", gentleness=dict(tolerance=1.0, multiplier="pid"))
     with pytest.raises(ValueError, match="set gentleness.tolerance"):
         tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier="pid"))
+
+
+def test_a_single_critic_agent_puts_the_multiplier_on_its_summed_penalty():
+    from gentlerl.rewards import SumRewards
+
+    td = TensorDict({"next": {"reward": torch.ones(1), "penalty": -0.5 * torch.ones(1)}})
+    reward_sum = SumRewards(["reward", "penalty"])
+    reward_sum.set_weight("penalty", ImpactMultiplier(2.0, (1.0, 0.0, 0.0)).observe([8.0]))
+    assert reward_sum(td)["next", "reward"].item() == pytest.approx(1.0 - 0.5 * 3.0)  # w = 1 + 2
+    with pytest.raises(KeyError, match="not one of the summed keys"):
+        reward_sum.set_weight("penalty_surprise", 1.0)

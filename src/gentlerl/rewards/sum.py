@@ -78,6 +78,16 @@ class SumRewards(Transform):
         self.task_key = task_key
         self._order_checked = False
 
+    def set_weight(self, key: str, weight: float) -> None:
+        """The factor of component ``key`` from now on (a sampled batch is summed again by
+        :class:`~gentlerl.rewards.RescoreRewards`), e.g. ``ImpactMultiplier.weight`` on
+        ``"penalty"``: a single-critic agent's Lagrange-weighted impact penalty."""
+        if key not in self.in_keys:
+            raise KeyError(f"SumRewards: {key!r} is not one of the summed keys {self.in_keys}")
+        if not math.isfinite(weight):
+            raise ValueError(f"SumRewards: a weight must be a finite number, got {weight}")
+        self.weights[self.in_keys.index(key)] = float(weight)
+
     @property
     def sources(self) -> list[str]:
         """The keys summed: ``in_keys`` with ``out_key`` read from ``task_key``."""
