@@ -126,9 +126,7 @@ def critic_calibration(
             f"as logging.eval_episodes are), got {episodes!r}"
         )
     cfg, learner, rewards, info = load_agent(path)
-    actor, critic = learner.actor, learner.loss.value_network.module
-    heads = [str(k) for k in learner.loss.reward_keys]
-    bounds = zip(critic.v_min, critic.v_max, strict=True)
+    actor = learner.actor
     policies = {
         "deterministic": actor,
         "noisy": make_exploration_policy(actor, cfg.collector.sigma),
@@ -138,21 +136,7 @@ def critic_calibration(
     else:
         env_factory = partial(make_env, cfg.task, **cfg.env.kwargs)
     env = make_eval_env(env_factory, seed, episodes, cfg.env.force)
-    report: dict[str, Any] = {
-        "checkpoint": str(_checkpoint_path(path)),
-        "task": cfg.task,
-        "variant": cfg.variant,
-        "frames": info["frames"],
-        "gamma": cfg.learner.gamma,
-        "sigma": cfg.collector.sigma,
-        "intrinsic_on": rewards.intrinsic_on,
-        "surprise_kind": cfg.gentleness.surprise_kind,
-        "episodes": episodes,
-        "seed": seed,
-        "supports": {h: [lo, hi] for h, (lo, hi) in zip(heads, bounds, strict=True)},
-        "not_saved": info["not_saved"],
-        "modes": {},
-    }
+    report = _report_head(path, cfg, learner, rewards, info) | {"episodes": episodes, "seed": seed}
     try:
         for mode, exploration in MODES.items():
             env.set_seed(seed)
@@ -167,6 +151,26 @@ def critic_calibration(
     finally:
         env.close()
     return report
+
+
+def _report_head(path: Any, cfg: Any, learner: Any, rewards: Any, info: dict) -> dict[str, Any]:
+    """What the report says of the run before its rollouts: where, what, and each head's support."""
+    critic = learner.loss.value_network.module
+    heads = [str(k) for k in learner.loss.reward_keys]
+    bounds = zip(critic.v_min, critic.v_max, strict=True)
+    return {
+        "checkpoint": str(_checkpoint_path(path)),
+        "task": cfg.task,
+        "variant": cfg.variant,
+        "frames": info["frames"],
+        "gamma": cfg.learner.gamma,
+        "sigma": cfg.collector.sigma,
+        "intrinsic_on": rewards.intrinsic_on,
+        "surprise_kind": cfg.gentleness.surprise_kind,
+        "supports": {h: [lo, hi] for h, (lo, hi) in zip(heads, bounds, strict=True)},
+        "not_saved": info["not_saved"],
+        "modes": {},
+    }
 
 
 def format_table(report: dict[str, Any]) -> str:

@@ -187,23 +187,29 @@ def adapt_env(
     out = ExternalEnv(env)
     for transform in transforms:
         out.append_transform(transform)
-    if force_key not in out.observation_spec.keys(True):
+    _check_force_entry(out, force_key, force_adapter)
+    if force_scale != 1.0:  # after the observation is built: it keeps the env's own reading
+        out.append_transform(
+            UnaryTransform(in_keys=[force_key], out_keys=[force_key], fn=_Scale(force_scale))
+        )
+    return out
+
+
+def _check_force_entry(env: EnvBase, force_key: str, force_adapter: str) -> None:
+    """A one-line error unless ``env`` writes ``force_key`` shaped ``[n_sites, n_channels]``."""
+    spec = env.observation_spec
+    if force_key not in spec.keys(True):
         raise ValueError(
             f"force key {force_key!r} (env.force_key) is not written by the env nor by adapter "
-            f"{force_adapter!r} (observation keys {sorted(map(str, out.observation_spec.keys()))})"
+            f"{force_adapter!r} (observation keys {sorted(map(str, spec.keys()))})"
         )
-    shape = list(out.observation_spec[force_key].shape[len(out.batch_size) :])
+    shape = list(spec[force_key].shape[len(env.batch_size) :])
     if len(shape) < 2:
         raise ValueError(
             f"force key {force_key!r} (env.force_key) has shape {shape}, not the [n_sites, "
             f"n_channels] newtons the rewards read (env.force_adapter={force_adapter!r}; "
             "touch_newtons adds the channel dim of a reading in N)"
         )
-    if force_scale != 1.0:  # after the observation is built: it keeps the env's own reading
-        out.append_transform(
-            UnaryTransform(in_keys=[force_key], out_keys=[force_key], fn=_Scale(force_scale))
-        )
-    return out
 
 
 class _Scale:

@@ -1,8 +1,8 @@
 """Multi-head distributional DDPG (D4PG) loss: one categorical critic per reward component.
 
 Huang et al. 2019 ("Agent architecture"): "We use a separate critic for each of the reward
-components [...] The separation of the critics supports more stable learning." The actor is
-trained to maximise the *sum* of the components' expected returns.
+components [...] The separation of the critics supports more stable learning." The actor
+maximises the (weighted) *sum* of the components' expected returns.
 """
 
 from __future__ import annotations
@@ -32,14 +32,13 @@ class MultiHeadD4PGLoss(LossModule):
     .. math::
         \mathcal{L}_{value} = \sum_k \mathbb{E}\left[ -\sum_j \Phi_j^k \log p_j^k(s, a) \right],
         \qquad
-        \mathcal{L}_{actor} = -\mathbb{E}\left[ \sum_k \mathbb{E}[Z^k(s, \pi(s))] \right].
+        \mathcal{L}_{actor} = -\mathbb{E}\left[ \sum_k w_k\, \mathbb{E}[Z^k(s, \pi(s))] \right],
 
-    The critic owns the supports: it writes each head's ``atoms`` next to its logits (see
-    :func:`gentlerl.models.make_critic`). Discounting is the value estimator's
-    (:meth:`make_value_estimator`, TD(0) on n-step data, ``gamma`` 0.99 by default), as in
-    TorchRL's losses. Heads named in ``non_episodic_keys`` bootstrap through ``terminated``, as
-    RND treats its intrinsic return (Burda et al. 2019): ending the episode by succeeding then
-    does not also end a curiosity stream. The paper does not say; by default every head is episodic.
+    :math:`w_k` = :attr:`head_weights` (1: the paper; :meth:`set_head_weight`). The critic owns the
+    supports: it writes each head's ``atoms`` next to its logits (:func:`~gentlerl.models.make_critic`).
+    Discounting is the value estimator's (:meth:`make_value_estimator`, TD(0) on n-step data), as
+    in TorchRL. Heads in ``non_episodic_keys`` bootstrap through ``terminated``, as RND treats its
+    intrinsic return (Burda et al. 2019); the paper does not say, and by default all are episodic.
 
     :meth:`loss_value` and :meth:`loss_actor` can be called alone; the critic parameters get no
     gradient from the actor loss. ``td_error`` (the replay priority) is the mean over heads of the
@@ -59,8 +58,7 @@ class MultiHeadD4PGLoss(LossModule):
             policy smoothing, Fujimoto et al. 2018), clipped to ``[-noise_clip, noise_clip]``, the
             noisy action clipped to [-1, 1]. 0 (default): D4PG as published.
         noise_clip: bound of that noise.
-        delay_actor, delay_value: keep target copies (update them with TorchRL's
-            ``HardUpdate`` / ``SoftUpdate``).
+        delay_actor, delay_value: keep target copies (TorchRL's ``HardUpdate`` / ``SoftUpdate``).
         use_prioritized_weights: weight samples by ``priority_weight`` when present ("auto").
 
     Examples:
@@ -144,7 +142,6 @@ class MultiHeadD4PGLoss(LossModule):
         self.set_keys(rewards=tuple(reward_keys))
         episodic = [k not in non_episodic_keys for k in reward_keys]
         self.register_buffer("episodic", torch.tensor(episodic), persistent=False)
-        # w_k of the actor's objective sum_k w_k Q_k (1: the paper; set_head_weight steers one)
         self.register_buffer("head_weights", torch.ones(self.num_heads), persistent=False)
         self.use_prioritized_weights = use_prioritized_weights
         self.reduction = "mean"
@@ -272,14 +269,13 @@ class MultiHeadD4PGLoss(LossModule):
         return loss, q_per_head.detach().reshape(-1, self.num_heads).mean(0)
 
     def loss_actor(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, dict]:
-        r"""Minus the weighted sum :math:`\sum_k w_k Q_k(s, \pi(s))` of the K heads (``w`` =
-        :attr:`head_weights`, 1 by default), ``{"value": [K] mean expected returns}``."""
+        """Minus the weighted sum of the K heads' expected returns at ``(s, pi(s))``,
+        ``{"value": [K] mean expected returns}``."""
         loss, value = self._actor_terms(tensordict, self.network_params())
         return loss, {"value": value}
 
     def set_head_weight(self, key: NestedKey, weight: float) -> None:
-        """The weight of ``key``'s head in the actor's objective (in place: a captured graph
-        reads it), e.g. 1 + a Lagrange multiplier on the impact penalty."""
+        """``key``'s :math:`w_k`, in place (a captured graph reads it): e.g. 1 + a multiplier."""
         self.head_weights[self.reward_keys.index(key)] = float(weight)
 
     def losses(
