@@ -11,7 +11,7 @@ from gentlerl import cli
 from gentlerl.apps import train as train_cli
 from gentlerl.envs import TASKS
 from gentlerl.rewards import VARIANTS
-from tests.test_plot import _fake_run
+from tests.analysis.test_summary import _fake_run
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from gentlerl import opengl
-from tests.test_evaluate import _scripted_policy
+from tests.apps.test_evaluate import _scripted_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,7 +14,7 @@ from gentlerl.functional import gaussian_nll, mixture_moments
 from gentlerl.rewards import IntrinsicRewards
 from gentlerl.rewards.multiplier import ImpactMultiplier
 from gentlerl.transforms import ImpactPenalty
-from tests.test_transforms import _pressing_rollout
+from tests.helpers import pressing_rollout
 from tests.toy_env import ToyHandEnv
 
 
@@ -49,7 +49,7 @@ def test_normalised_curiosity_is_the_nll_over_its_running_mean_on_contact_steps(
     )
     rewards.step(1)  # the rewards on
     rsp = rewards.transform[1]
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     penalty = rewards.transform[0](batch.clone())["next", keys.PENALTY]
     contact = penalty.squeeze(-1) < 0
     assert contact.any() and not contact.all()
@@ -92,7 +92,7 @@ def test_the_multiplier_by_hand():
 
 
 def test_the_actor_maximises_the_weighted_sum_of_its_heads():
-    from tests.test_learner import _batch, _learner  # a 2-head D4PG loss and its batch
+    from tests.agent.test_learner import _batch, _learner  # a 2-head D4PG loss and its batch
 
     loss, batch = _learner().loss, _batch()
     plain = loss(batch.clone())
@@ -109,7 +109,7 @@ def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_pa
     against a tolerance of 0.5 N): the weight rises above 1, the actor's objective carries it,
     it is logged, and a resumed run restores it before its first update."""
     from gentlerl.training import Trainer
-    from tests.test_training_loop import read_scalar, tiny_config, toy_env
+    from tests.helpers import read_scalar, tiny_config, toy_env
 
     gentle = dict(tolerance=0.5, multiplier="pid", reward_delay=100, model_hidden=16)
     cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=900, gentleness=gentle)
@@ -130,7 +130,7 @@ def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_pa
 
 
 def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(tmp_path):
-    from tests.test_training_loop import tiny_config
+    from tests.helpers import tiny_config
 
     with pytest.raises(ValueError, match="weighs the penalty head, which variant=r lacks"):
         tiny_config(tmp_path, variant="r", gentleness=dict(tolerance=1.0, multiplier="pid"))

@@ -7,7 +7,7 @@ from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.objectives.compile import compile_unavailable
 from gentlerl.rewards.model_step import ModelStep
-from tests.test_learner import _batch
+from tests.agent.test_learner import _batch
 
 
 def _penalty_batch(seed):

@@ -21,7 +21,7 @@ from gentlerl.analysis.runs import (
     successful_final_impacts,
 )
 from gentlerl.apps.plot import build_parser, main, resolve_run_paths
-from tests.test_plot import EPISODES_HEADER, _fake_run
+from tests.analysis.test_summary import EPISODES_HEADER, _fake_run
 
 
 def _series(frames, values):

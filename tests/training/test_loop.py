@@ -15,62 +15,11 @@ from torchrl.envs import Compose, TransformedEnv
 from gentlerl import keys
 from gentlerl.config.layout import RunLayout
 from gentlerl.training import Trainer, load_policy, make_config, train
-from gentlerl.training.config import iter_fields
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EVAL_COLUMNS, EpisodeStats, episode_transforms
 from gentlerl.transforms import ImpactPenalty
+from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
-
-#: Small nets, few frames: a full loop (with model updates) in a few seconds.
-TINY = dict(
-    num_threads=1,  # tiny nets; 2 threads on a shared 2-core CPU is many times slower
-    collector=dict(total_frames=1000, frames_per_batch=100, init_random_frames=200),
-    replay=dict(batch_size=32),
-    learner=dict(utd_ratio=0.5),
-    network=dict(actor_hidden=(32, 32), critic_hidden=(32, 32), num_atoms=11),
-    gentleness=dict(
-        reward_delay=100,
-        dynamics_target_period=20,
-        penalty_target_period=10,
-        model_hidden=16,
-        model_batch_size=16,
-    ),
-    logging=dict(
-        eval_every_frames=500,
-        eval_episodes=2,
-        log_every_updates=50,
-        checkpoint_every_frames=500,
-        wandb_mode="disabled",
-        progress=False,
-    ),
-)
-
-
-#: Field name -> its group, for the tests' short form ``tiny_config(path, total_frames=300)``.
-GROUP_OF = {name.split(".")[1]: name.split(".")[0] for name, _ in iter_fields() if "." in name}
-
-
-def tiny_config(run_dir: Path, **overrides):
-    """:data:`TINY` with ``overrides`` on top: top-level fields, ``group={field: value}``, or a
-    group's field by its name alone (``total_frames=300``)."""
-    values = {k: dict(v) if isinstance(v, dict) else v for k, v in TINY.items()}
-    for name, value in overrides.items():
-        if isinstance(value, dict) and name not in GROUP_OF:
-            values.setdefault(name, {}).update(value)
-        elif name in GROUP_OF:
-            values.setdefault(GROUP_OF[name], {})[name] = value
-        else:
-            values[name] = value
-    return make_config(run_dir=str(run_dir), **values)
-
-
-def toy_env():
-    return ToyHandEnv(time_limit=50)
-
-
-def read_scalar(run_dir: Path, name: str) -> list[tuple[int, float]]:
-    path = RunLayout(run_dir).scalars / f"{name}.csv"
-    return [(int(s), float(v)) for s, v in csv.reader(path.open())]
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from gentlerl import keys
 from gentlerl.models import make_exploration_policy
 from gentlerl.training import train
 from gentlerl.training.prefetch import PrefetchCollector, snapshot_policy
-from tests.test_training_loop import read_scalar, tiny_config, toy_env
+from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
 
 

@@ -22,7 +22,7 @@ from gentlerl import cli, keys
 from gentlerl.functional import impact, impact_penalty
 from gentlerl.training.config import iter_fields
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 SITES, CHANNELS, FORCE = 3, 2, "force"
 
 

@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from gentlerl.training import Trainer, load_checkpoint, make_config
-from tests.test_training_loop import read_scalar, tiny_config
+from tests.helpers import read_scalar, tiny_config
 from tests.toy_env import ToyHandEnv
 
 ray = pytest.importorskip("ray")
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 class FailingToyEnv(ToyHandEnv):

@@ -14,9 +14,9 @@ from gentlerl.models import make_exploration_policy
 from gentlerl.training import Trainer, make_config
 from gentlerl.training.prefetch import PrefetchCollector
 from gentlerl.training.process_collector import ProcessCollector
-from tests.test_prefetch import _actions_while_training, _constant_actor
-from tests.test_training_loop import read_scalar, tiny_config, toy_env
+from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
+from tests.training.test_prefetch import _actions_while_training, _constant_actor
 
 
 def _collector(env=ToyHandEnv, frames_per_batch=10, total_frames=60, **kwargs) -> partial:

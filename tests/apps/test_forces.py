@@ -84,6 +84,6 @@ def test_command_names_an_unknown_env():
 
 def test_a_policy_measured_under_another_env_name_is_refused():
     """The finding: ``forces ENV --policy hand_policy.pt`` printed the hand's numbers as ENV's."""
-    policy = Path(__file__).resolve().parents[1] / "docs/policies/touch/r/seed0.pt"
+    policy = Path(__file__).resolve().parents[2] / "docs/policies/touch/r/seed0.pt"
     with pytest.raises(ValueError, match=r"acts on 'touch' .* ENV is 'dm_control:finger-spin'"):
         forces.measure("dm_control:finger-spin", 1, policy=str(policy))

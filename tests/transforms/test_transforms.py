@@ -13,26 +13,16 @@ from torchrl.envs import Compose, ParallelEnv, RenameTransform, SerialEnv, Trans
 from torchrl.envs.utils import check_env_specs
 
 from gentlerl import keys
-from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, information_gain, mixture_moments
-from gentlerl.rewards import VARIANTS, IntrinsicRewards
+from gentlerl.rewards import VARIANTS
 from gentlerl.transforms import (
     DynamicsSurprise,
     ImpactPenalty,
     NonFiniteForceError,
     PenaltySurprise,
 )
+from tests.helpers import make_reward_transforms, pressing_rollout
 from tests.toy_env import ToyHandEnv
-
-HAND_FEATURES = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
-
-
-def make_reward_transforms(variant, seed=0, hidden=128, **settings):
-    """A variant's :class:`IntrinsicRewards` for the toy / hand env's sizes."""
-    gentleness = GentlenessConfig(model_hidden=hidden, **settings)
-    return IntrinsicRewards(
-        variant, gentleness, obs_dim=63, action_dim=20, feature_shapes=HAND_FEATURES, seed=seed
-    )
 
 
 def _press_batch():
@@ -84,21 +74,13 @@ def test_a_missing_force_key_is_one_line_naming_it_and_the_keys_there(where):
     assert message.endswith("(set in_keys to the env's key)")
 
 
-def _pressing_rollout(env, steps=12):
-    # Joint 1 moves +0.1 per step: it passes the wall at 0.5 after 5 steps, then presses with
-    # fingertip 1 (only fingertip 0 ends the toy episode).
-    action = torch.zeros(20)
-    action[1] = 1.0
-    return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action.expand(*td.shape, 20)))
-
-
 def test_impact_penalty_on_env_specs_reset_and_values():
     env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
     check_env_specs(env)
     assert keys.PENALTY in env.reward_keys
     reset = env.reset()
     assert reset[keys.IMPACT].abs().sum() == 0  # no spurious impact at reset
-    rollout = _pressing_rollout(env)
+    rollout = pressing_rollout(env)
     # From step 6 on, the force rises by 0.1 * 20 = 2 N (+ 0.2 N tangential) per step.
     impacts = rollout["next", keys.IMPACT][:, 1]
     assert impacts[:5].abs().max() < 1e-5
@@ -112,8 +94,8 @@ def test_impact_penalty_on_env_specs_reset_and_values():
 
 def test_transform_gives_the_same_rewards_on_env_batch_and_replay_buffer():
     env = TransformedEnv(ToyHandEnv(), ImpactPenalty())
-    on_env = _pressing_rollout(env)
-    raw = _pressing_rollout(ToyHandEnv())
+    on_env = pressing_rollout(env)
+    raw = pressing_rollout(ToyHandEnv())
     on_batch = Compose(ImpactPenalty())(raw.clone())
     torch.testing.assert_close(on_batch["next", keys.PENALTY], on_env["next", keys.PENALTY])
     rb = TensorDictReplayBuffer(
@@ -163,7 +145,7 @@ def test_dynamics_surprise_is_the_mixture_nll_and_waits_for_activation():
     )
     surprise = stack.transform[1]
     assert isinstance(surprise, DynamicsSurprise)
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     assert stack.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE].abs().sum() == 0
     stack.step(10)  # reward delay reached
     out = stack.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE]
@@ -183,7 +165,7 @@ def test_penalty_surprise_zero_without_impact_and_formula_with_it():
         "r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3, lam_prime=(2.0, 3.0)
     )
     stack.step(0)
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     out = stack.transform(batch)
     penalty = out["next", keys.PENALTY]
     rsp = out["next", keys.PENALTY_SURPRISE]
@@ -215,7 +197,7 @@ def test_penalty_surprise_scale_shrinks_the_nll_not_the_refund():
             surprise_scale=scale,
         )
         stack.step(0)
-        batch = _pressing_rollout(ToyHandEnv())
+        batch = pressing_rollout(ToyHandEnv())
         out[scale] = stack.transform(batch)
     penalty = out[1.0]["next", keys.PENALTY]
     hit = penalty < 0
@@ -256,7 +238,7 @@ def test_state_dict_round_trip():
     a.step(0)
     b.load_state_dict(a.state_dict())
     assert b.intrinsic_on
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     torch.testing.assert_close(
         a.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
         b.transform(batch.clone())["next", keys.DYNAMICS_SURPRISE],
@@ -298,7 +280,7 @@ def test_penalty_surprise_nll_floor_keeps_the_surprise_a_bonus():
     stack = make_reward_transforms("r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3)
     stack.step(0)
     surprise = stack.transform[1]
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     stack.transform[0](batch)  # write the penalty first
     mean, var = stack.losses["penalty"].predict_target(batch)
     mu, s2 = mixture_moments(mean, var)
@@ -326,10 +308,10 @@ def test_penalty_surprise_sources_add_up_to_the_paid_reward():
         surprise_nll_floor=5.0,
     )  # fmt: skip
     surprise = stack.transform[1]
-    closed = surprise.sources(stack.transform(_pressing_rollout(ToyHandEnv())))
+    closed = surprise.sources(stack.transform(pressing_rollout(ToyHandEnv())))
     assert (closed["curiosity"] == 0).all() and (closed["refund"] == 0).all()
     stack.step(0)
-    batch = stack.transform(_pressing_rollout(ToyHandEnv()))
+    batch = stack.transform(pressing_rollout(ToyHandEnv()))
     parts = surprise.sources(batch)
     hit = parts["penalty"] < 0
     assert hit.any() and (parts["spread"] + parts["error"] < 5.0)[hit].all()  # the floor binds
@@ -353,7 +335,7 @@ def test_penalty_surprise_information_gain_reads_the_members_disagreement():
         surprise_scale=0.5, surprise_kind="information_gain",
     )  # fmt: skip
     stack.step(0)
-    batch = stack.transform(_pressing_rollout(ToyHandEnv()))
+    batch = stack.transform(pressing_rollout(ToyHandEnv()))
     penalty = batch["next", keys.PENALTY]
     hit = penalty < 0
     mean, var = stack.losses["penalty"].predict_target(batch)
@@ -409,20 +391,20 @@ def test_model_rewards_agree_on_batch_env_replay_buffer_and_parallel_env(variant
     key = _MODEL_REWARDS[variant]
     stack = make_reward_transforms(variant, reward_delay=0, hidden=16, ensemble_size=3)
     stack.step(0)
-    on_batch = stack.transform(_pressing_rollout(ToyHandEnv()))[("next", key)]
+    on_batch = stack.transform(pressing_rollout(ToyHandEnv()))[("next", key)]
     # Every reward is informative once the fingertip presses (steps 6+; r^sp is 0 before).
     assert on_batch.shape == (12, 1) and (on_batch[6:] != 0).all()
 
     env = TransformedEnv(ToyHandEnv(), stack.transform.clone())
-    on_env = _pressing_rollout(env)
+    on_env = pressing_rollout(env)
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(20), transform=stack.transform.clone())
-    rb.extend(_pressing_rollout(ToyHandEnv()))
+    rb.extend(pressing_rollout(ToyHandEnv()))
     parallel = TransformedEnv(
         ParallelEnv(2, ToyHandEnv, mp_start_method="fork"), stack.transform.clone()
     )
     try:
         check_env_specs(parallel)
-        on_parallel = _pressing_rollout(parallel)
+        on_parallel = pressing_rollout(parallel)
     finally:
         parallel.close()
     torch.testing.assert_close(on_env["next", key], on_batch)
@@ -437,14 +419,14 @@ def test_model_rewards_agree_on_batch_env_replay_buffer_and_parallel_env(variant
         for tensors in params:
             for tensor in tensors.values(True, True):
                 tensor.add_(0.05)
-    updated = stack.transform(_pressing_rollout(ToyHandEnv()))[("next", key)]
+    updated = stack.transform(pressing_rollout(ToyHandEnv()))[("next", key)]
     assert not torch.allclose(updated, on_batch)
-    torch.testing.assert_close(_pressing_rollout(env)["next", key], updated)
+    torch.testing.assert_close(pressing_rollout(env)["next", key], updated)
 
 
 def test_icm_reward_is_half_eta_times_the_squared_feature_error():
     stack = make_reward_transforms("r+icm", reward_delay=3, icm_eta=3.0)
-    batch = _pressing_rollout(ToyHandEnv())
+    batch = pressing_rollout(ToyHandEnv())
     assert stack.transform(batch.clone())["next", keys.ICM_REWARD].abs().sum() == 0  # delay
     stack.step(3)
     out = stack.transform(batch.clone())["next", keys.ICM_REWARD]

@@ -15,7 +15,7 @@ from gentlerl.training.guards import (
     config_changes,
     stop_if_not_finite,
 )
-from tests.test_training_loop import read_scalar, tiny_config, toy_env
+from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
 
 #: One evaluation and one checkpoint, both at the end (frame 300).

@@ -1,7 +1,7 @@
 """Golden losses: a fixed-seed toy-env run logs the same first 200 updates' losses as recorded.
 
 The fixture ``tests/data/golden_losses.json`` was written by this file's ``record`` (run
-``python -m tests.test_golden``) before the training code was reorganised; a refactor that keeps
+``python -m tests.repo.test_golden``) before the training code was reorganised; a refactor that keeps
 behaviour must reproduce it. Regenerate the fixture (and say why in the commit) only when the
 behaviour is meant to change, or the torch build does.
 
@@ -30,7 +30,7 @@ import pytest
 from gentlerl.training import make_config, train
 from tests.toy_env import ToyHandEnv
 
-FIXTURE = Path(__file__).parent / "data" / "golden_losses.json"
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "golden_losses.json"
 #: 200 updates (utd 0.5 over the 400 frames after 200 random ones), 2-frame batches: one
 #: update and one log row per batch.
 LOGGED = 200

@@ -17,15 +17,15 @@ from gentlerl.config import GentlenessConfig
 from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training.logging import force_unit
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: A machine without a display, as CI is, and with gentlerl's own choice of GL backend.
 HEADLESS = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL")}
 NOISE = re.compile(r"warn|error|traceback|nan\b", re.IGNORECASE)
 
-#: tests/test_training_loop.py's tiny run, shorter: the toy env, one evaluation, no wandb.
+#: tests/helpers.py's tiny run, shorter: the toy env, one evaluation, no wandb.
 TOY_RUN = """
 import sys
-from tests.test_training_loop import tiny_config, toy_env
+from tests.helpers import tiny_config, toy_env
 from gentlerl.training import train
 cfg = tiny_config(sys.argv[1], total_frames=300, init_random_frames=100, eval_every_frames=300)
 print(train(cfg, toy_env))

@@ -4,7 +4,7 @@ import importlib
 import re
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "src" / "gentlerl"
 TEXT = (ROOT / "CONTRIBUTING.md").read_text()
 

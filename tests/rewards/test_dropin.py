@@ -14,7 +14,7 @@ from gentlerl import keys
 from gentlerl.config import GentlenessConfig
 from gentlerl.functional import gaussian_nll, mixture_moments, penalty_surprise
 from gentlerl.rewards import IntrinsicRewards, RescoreRewards, SumRewards
-from tests.test_transforms import _pressing_rollout
+from tests.helpers import pressing_rollout
 from tests.toy_env import ToyHandEnv
 
 SMALL = dict(model_hidden=16, ensemble_size=3, model_batch_size=8)
@@ -84,7 +84,7 @@ def test_the_summed_env_has_one_reward_and_valid_specs():
     env, _ = summed_env(small_rewards(reward_delay=0))
     check_env_specs(env)
     assert env.reward_key == keys.REWARD and env.reward_keys == [keys.REWARD]
-    rollout = _pressing_rollout(env)
+    rollout = pressing_rollout(env)
     n = rollout["next"]
     parts = n[keys.TASK_REWARD] + n[keys.PENALTY] + n[keys.PENALTY_SURPRISE]
     torch.testing.assert_close(n[keys.REWARD], parts)
@@ -105,7 +105,7 @@ def test_a_reward_sum_after_the_sum_is_refused():
 
 def _contact_batch(rewards: IntrinsicRewards):
     env, reward_sum = summed_env(rewards)
-    return reward_sum, _pressing_rollout(env)
+    return reward_sum, pressing_rollout(env)
 
 
 def test_rescore_rewards_score_a_sample_with_the_current_target_model():

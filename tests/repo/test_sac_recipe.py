@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import torch
 
-RECIPES = Path(__file__).resolve().parents[1] / "recipes"
+RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 
 def load(name: str):

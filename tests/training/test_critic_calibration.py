@@ -26,8 +26,7 @@ from gentlerl.training.critic_calibration import (
 )
 from gentlerl.training.evaluation import rollout_episodes
 from gentlerl.transforms import ImpactPenalty
-from tests.test_training_loop import read_scalar, tiny_config
-from tests.test_transforms import _pressing_rollout, make_reward_transforms
+from tests.helpers import make_reward_transforms, pressing_rollout, read_scalar, tiny_config
 from tests.toy_env import ToyHandEnv
 
 F, T = False, True
@@ -233,7 +232,7 @@ def test_penalty_surprise_sources_need_a_penalty_surprise_and_contact():
     # Steps without contact: nothing to decompose, and None (not NaN) where a mean has no steps.
     stack = make_reward_transforms("r+rf+rsp", reward_delay=0, hidden=16, ensemble_size=3)
     stack.step(0)
-    steps = _pressing_rollout(ToyHandEnv())
+    steps = pressing_rollout(ToyHandEnv())
     quiet = steps[(stack.transform(steps.clone())["next", keys.PENALTY] == 0).reshape(-1)]
     stats = penalty_surprise_sources(stack.transform, [quiet])
     assert stats["contact_steps"] == 0 and stats["steps"] == quiet.shape[0] > 0

@@ -8,7 +8,7 @@ from torchrl.envs import RenameTransform, TransformedEnv
 from gentlerl.config.layout import RunLayout
 from gentlerl.training.builders import make_agent, make_run_collector, write_config
 from gentlerl.training.logging import Progress
-from tests.test_training_loop import tiny_config, toy_env
+from tests.helpers import tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
 
 

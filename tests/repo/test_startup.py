@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
 HEAVY = ("torch", "torchrl", "tensordict", "mujoco", "dm_control")
 #: Seconds for an answer that needs no torch (importing torch alone takes 1.5 s, TorchRL 6.5 s).

@@ -21,9 +21,9 @@ from gentlerl.training.checkpoint import (
     remove_stale_temp_files,
     replay_buffer_state,
 )
-from tests.test_training_loop import tiny_config, toy_env
+from tests.helpers import tiny_config, toy_env
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_save_is_atomic(tmp_path):

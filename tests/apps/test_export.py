@@ -12,7 +12,7 @@ from gentlerl.apps.export import export_runs, main, policy_path
 from gentlerl.models import make_actor
 from gentlerl.training import Trainer, load_checkpoint, load_policy, make_config, save_checkpoint
 from gentlerl.training.checkpoint import POLICY_KEYS, CheckpointError, export_policy
-from tests.test_training_loop import tiny_config, toy_env
+from tests.helpers import tiny_config, toy_env
 
 
 def test_exported_policy_acts_and_evaluates_like_the_checkpoint(tmp_path):

@@ -12,7 +12,7 @@ from gentlerl.apps.sweeps import main
 from gentlerl.config.presets import SCALES
 from gentlerl.training.config import make_config
 
-SWEEPS = Path(__file__).resolve().parents[1] / "recipes" / "sweeps"
+SWEEPS = Path(__file__).resolve().parents[2] / "recipes" / "sweeps"
 TINY = [
     "collector.total_frames=300", "collector.init_random_frames=200",
     "collector.frames_per_batch=100", "replay.batch_size=16", "logging.eval_episodes=1",

@@ -13,7 +13,7 @@ from gentlerl.training import make_config
 from gentlerl.training.config import iter_fields
 from gentlerl.transforms import TouchSensorMap
 
-RECIPES = Path(__file__).resolve().parents[1] / "recipes"
+RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 
 def test_real_scale_is_the_paper_scale_with_the_real_robot_numbers():

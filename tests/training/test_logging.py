@@ -9,7 +9,7 @@ from gentlerl.training import make_config
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.logging import RunLogger, progress_postfix
 from gentlerl.training.loop import Trainer, train
-from tests.test_training_loop import read_scalar, tiny_config, toy_env
+from tests.helpers import read_scalar, tiny_config, toy_env
 
 
 def test_csv_only_by_default_and_wandb_offline_and_silent_when_asked(tmp_path, capfd):

@@ -1,0 +1,85 @@
+"""Helpers shared by test files of several packages: the tiny training config, the toy env's
+factory, a run's logged scalar, a variant's reward transforms and a pressing rollout."""
+
+import csv
+from pathlib import Path
+
+import torch
+
+from gentlerl import keys
+from gentlerl.config import GentlenessConfig
+from gentlerl.config.layout import RunLayout
+from gentlerl.rewards import IntrinsicRewards
+from gentlerl.training import make_config
+from gentlerl.training.config import iter_fields
+from tests.toy_env import ToyHandEnv
+
+#: Small nets, few frames: a full loop (with model updates) in a few seconds.
+TINY = dict(
+    num_threads=1,  # tiny nets; 2 threads on a shared 2-core CPU is many times slower
+    collector=dict(total_frames=1000, frames_per_batch=100, init_random_frames=200),
+    replay=dict(batch_size=32),
+    learner=dict(utd_ratio=0.5),
+    network=dict(actor_hidden=(32, 32), critic_hidden=(32, 32), num_atoms=11),
+    gentleness=dict(
+        reward_delay=100,
+        dynamics_target_period=20,
+        penalty_target_period=10,
+        model_hidden=16,
+        model_batch_size=16,
+    ),
+    logging=dict(
+        eval_every_frames=500,
+        eval_episodes=2,
+        log_every_updates=50,
+        checkpoint_every_frames=500,
+        wandb_mode="disabled",
+        progress=False,
+    ),
+)
+
+
+#: Field name -> its group, for the tests' short form ``tiny_config(path, total_frames=300)``.
+GROUP_OF = {name.split(".")[1]: name.split(".")[0] for name, _ in iter_fields() if "." in name}
+
+
+def tiny_config(run_dir: Path, **overrides):
+    """:data:`TINY` with ``overrides`` on top: top-level fields, ``group={field: value}``, or a
+    group's field by its name alone (``total_frames=300``)."""
+    values = {k: dict(v) if isinstance(v, dict) else v for k, v in TINY.items()}
+    for name, value in overrides.items():
+        if isinstance(value, dict) and name not in GROUP_OF:
+            values.setdefault(name, {}).update(value)
+        elif name in GROUP_OF:
+            values.setdefault(GROUP_OF[name], {})[name] = value
+        else:
+            values[name] = value
+    return make_config(run_dir=str(run_dir), **values)
+
+
+def toy_env():
+    return ToyHandEnv(time_limit=50)
+
+
+def read_scalar(run_dir: Path, name: str) -> list[tuple[int, float]]:
+    path = RunLayout(run_dir).scalars / f"{name}.csv"
+    return [(int(s), float(v)) for s, v in csv.reader(path.open())]
+
+
+HAND_FEATURES = {keys.JOINT_POS: (24,), keys.JOINT_VEL: (24,), keys.TOUCH: (5, 3)}
+
+
+def make_reward_transforms(variant, seed=0, hidden=128, **settings):
+    """A variant's :class:`IntrinsicRewards` for the toy / hand env's sizes."""
+    gentleness = GentlenessConfig(model_hidden=hidden, **settings)
+    return IntrinsicRewards(
+        variant, gentleness, obs_dim=63, action_dim=20, feature_shapes=HAND_FEATURES, seed=seed
+    )
+
+
+def pressing_rollout(env, steps=12):
+    # Joint 1 moves +0.1 per step: it passes the wall at 0.5 after 5 steps, then presses with
+    # fingertip 1 (only fingertip 0 ends the toy episode).
+    action = torch.zeros(20)
+    action[1] = 1.0
+    return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action.expand(*td.shape, 20)))
