@@ -1,9 +1,11 @@
 """Helpers shared by test files of several packages: the tiny training config, the toy env's
-factory, a run's logged scalar, a variant's reward transforms and a pressing rollout."""
+factory, a run's logged scalar, a variant's reward transforms, a pressing rollout, and the hostile
+input tests' sweep files, sensor map, policy files and minimal runs."""
 
 import csv
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from gentlerl import keys
@@ -83,3 +85,53 @@ def pressing_rollout(env, steps=12):
     action = torch.zeros(20)
     action[1] = 1.0
     return env.rollout(steps, policy=lambda td: td.set(keys.ACTION, action.expand(*td.shape, 20)))
+
+
+def sweep_file(tmp_path: Path, body: str) -> str:
+    """A sweep file holding ``body``: its path."""
+    path = tmp_path / "evil.yaml"
+    path.write_text(body)
+    return str(path)
+
+
+def files_under(root: Path) -> set[Path]:
+    """Every path under ``root``: what a refusal must leave unchanged."""
+    return {p for p in root.rglob("*")}
+
+
+def linear_sensor_map(n_knots: int = 16):
+    """A TouchSensorMap fitted to a linear sensor (raw = 1000 + 100 * force) and its forces."""
+    from gentlerl.transforms import TouchSensorMap
+
+    force = np.linspace(0, 20, 64)[:, None, None] * np.ones((1, 5, 1))
+    sensor_map = TouchSensorMap(n_knots=n_knots)
+    sensor_map.fit(1000 + 100 * force, force)
+    return sensor_map, force
+
+
+def policy_file(tmp_path: Path, hidden: list[int], weights_hidden: list[int]) -> Path:
+    """A saved policy whose config says ``hidden`` and whose actor weights are ``weights_hidden``."""
+    from gentlerl.models import make_actor
+    from gentlerl.training.checkpoint import save_checkpoint
+    from gentlerl.training.config import preset_config
+
+    config = preset_config(network={"actor_hidden": hidden}).to_dict()
+    actor = make_actor(10, 20, weights_hidden)
+    path = tmp_path / "policy.pt"
+    state = {"config": config, "obs_dim": 10, "action_dim": 20, "actor": actor.state_dict()}
+    save_checkpoint(path, state)
+    return path
+
+
+def minimal_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000,0.7\n") -> Path:
+    """A run folder with a config and (unless ``scalars`` is None) one eval scalar file."""
+    import yaml
+
+    run = root / f"seed{seed}"
+    config = {"task": "touch", "variant": "r", "seed": seed, "collector": {}, "gentleness": {}}
+    run.mkdir(parents=True)
+    (run / "config.yaml").write_text(yaml.safe_dump(config))
+    if scalars is not None:
+        (run / "logs" / "scalars" / "eval").mkdir(parents=True)
+        (run / "logs" / "scalars" / "eval" / "success_rate.csv").write_text(scalars)
+    return run
