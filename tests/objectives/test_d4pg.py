@@ -1,7 +1,5 @@
 """MultiHeadD4PGLoss: targets, per-head losses, gradients, target updates, learning a bandit."""
 
-import doctest
-
 import pytest
 import torch
 from tensordict import TensorDict
@@ -245,10 +243,3 @@ def test_critics_learn_per_head_values_and_actor_maximises_their_sum():
     out = loss(_batch(1))
     assert out["value_reward"].item() == pytest.approx(-0.16, abs=0.08)
     assert out["value_penalty"].item() == pytest.approx(-0.16, abs=0.08)
-
-
-def test_the_docstring_example_runs():
-    from gentlerl.objectives import d4pg
-
-    result = doctest.testmod(d4pg)
-    assert result.attempted >= 8 and result.failed == 0
