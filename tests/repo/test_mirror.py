@@ -1,0 +1,108 @@
+"""The tests mirror the package: each module ``gentlerl/<package>/<module>.py`` has a test in
+``tests/<package>/``: ``test_<module>.py`` (or ``test_<module>_*.py``), or a test file there that
+imports the module or a name it defines. A top-level module's folder is ``tests/`` (and
+``tests/repo/``). The modules that had no such test when the tests were laid out this way are
+listed in :data:`WITHOUT_A_TEST`; the list may only shrink.
+"""
+
+import ast
+import importlib
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGE = ROOT / "src" / "gentlerl"
+TESTS = ROOT / "tests"
+
+#: Modules tested only through others (or in another package's folder), each awaiting a test of
+#: its own in its folder. A module added to the package is not added here: it comes with a test.
+WITHOUT_A_TEST = {
+    "gentlerl.apps.closing",  # the run's closing lines: tests/repo/test_clean_console.py
+    "gentlerl.apps.outputs",
+    "gentlerl.apps.parsing",
+    "gentlerl.apps.train",  # the hydra app: tests/config/test_config.py
+    "gentlerl.config.layout",  # RunLayout: tests/training/test_builders.py, test_logging.py
+    "gentlerl.config.presets",  # SCALES: tests/config/test_config.py through make_config
+    "gentlerl.config.rules",  # validation: tests/config/test_config.py through make_config
+    "gentlerl.envs.environment",
+    "gentlerl.envs.rendering",
+    "gentlerl.envs.task_names",
+    "gentlerl.lazy",  # tests/repo/test_startup.py
+    "gentlerl.models.layers",
+    "gentlerl.objectives.models",  # tests/models/test_ensemble.py
+    "gentlerl.objectives.value",
+    "gentlerl.rewards.chain",
+    "gentlerl.rewards.specs",
+    "gentlerl.training.env_probe",
+    "gentlerl.training.policy_weights",
+    "gentlerl.training.seeding",
+    "gentlerl.training.state_checks",
+}
+
+
+def _modules() -> dict[str, Path]:
+    """Dotted name -> the test folder that mirrors it, for every module but ``__init__`` /
+    ``__main__``."""
+    found = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE)
+        if rel.name not in ("__init__.py", "__main__.py"):
+            found["gentlerl." + ".".join(rel.with_suffix("").parts)] = TESTS / rel.parent
+    return found
+
+
+def _module_of(package: str, name: str) -> set[str]:
+    """The module that defines ``package.name`` (a submodule itself, or where a class or function
+    was defined); empty if it cannot be imported here."""
+    try:
+        value = getattr(importlib.import_module(package), name)
+    except Exception:  # an optional dependency missing: the import still names `package`
+        return set()
+    if isinstance(value, type(sys)):
+        return {value.__name__}
+    return {getattr(value, "__module__", None) or package}
+
+
+def _imported(path: Path) -> set[str]:
+    """The gentlerl modules a test file imports, and the modules defining the names it imports."""
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.startswith("gentlerl")}
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("gentlerl"):
+            out.add(node.module)
+            for alias in node.names:
+                out |= _module_of(node.module, alias.name)
+    return out
+
+
+def _tested(module: str, folder: Path) -> bool:
+    stem = module.rsplit(".", 1)[1]
+    files = sorted(folder.glob("test_*.py"))
+    if folder == TESTS:
+        files += sorted((TESTS / "repo").glob("test_*.py"))
+    if any(f.stem == f"test_{stem}" or f.stem.startswith(f"test_{stem}_") for f in files):
+        return True
+    return any(module in _imported(f) for f in files)
+
+
+def test_every_module_has_a_test_in_the_folder_that_mirrors_it():
+    modules = _modules()
+    assert len(modules) > 60  # the package, not a wrong path
+    untested = {m for m, folder in modules.items() if not _tested(m, folder)}
+    new = sorted(untested - WITHOUT_A_TEST)
+    assert not new, f"modules without a test in their tests/<package>/ folder: {new}"
+    gone = sorted(WITHOUT_A_TEST - set(modules))
+    assert not gone, f"WITHOUT_A_TEST names modules the package no longer has: {gone}"
+    tested_now = sorted(WITHOUT_A_TEST - untested)
+    assert not tested_now, f"these have a test now: take them off WITHOUT_A_TEST: {tested_now}"
+
+
+def test_every_test_folder_mirrors_a_package():
+    folders = {p.name for p in TESTS.iterdir() if (p / "__init__.py").exists()}
+    packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    assert folders - packages == {"repo"}, f"test folders with no package: {folders - packages}"
+    assert not packages - folders, f"packages with no test folder: {packages - folders}"
+    stray = [p.name for p in TESTS.glob("test_*.py")
+             if not (PACKAGE / f"{p.stem.removeprefix('test_').split('_')[0]}.py").exists()]  # fmt: skip
+    assert not stray, f"top-level test files that mirror no top-level module: {stray}"
