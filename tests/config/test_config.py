@@ -266,7 +266,7 @@ def test_help_marks_the_ablation_knobs_the_reproduction_grid_switches():
     import re
     from pathlib import Path
 
-    script = (Path(__file__).resolve().parents[1] / "recipes/grids/reproduce.sh").read_text()
+    script = (Path(__file__).resolve().parents[2] / "recipes/grids/reproduce.sh").read_text()
     ablations = script[script.index('case "$method" in') :]
     switched = set(re.findall(r"--set ((?:gentleness|network|learner)\.\w+)=", ablations))
     switched -= {"network.v_min", "network.v_max"}

@@ -37,6 +37,7 @@ WITHOUT_A_TEST = {
     "gentlerl.rewards.chain",
     "gentlerl.rewards.specs",
     "gentlerl.training.env_probe",
+    "gentlerl.training.migration",  # old checkpoints' configs: tests/config/test_config.py
     "gentlerl.training.policy_weights",
     "gentlerl.training.run_state",  # the multiplier's run state: tests/rewards/test_tolerance.py
     "gentlerl.training.seeding",
