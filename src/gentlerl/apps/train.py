@@ -53,7 +53,10 @@ def describe() -> str:
         valid += f"  ({bounds.describe()})" if bounds is not None else ""
         # The app's run_dir is an interpolation of the run's identity, not the dataclass default.
         shown = "runs/<task>/<variant>/seed<seed>" if name == "run_dir" else get(defaults, name)
-        lines.append(f"  {name}={_override(shown)}".ljust(42) + f" {f.metadata['help']}{valid}")
+        mark = "[ablation] " if f.metadata.get("ablation") else ""
+        lines.append(
+            f"  {name}={_override(shown)}".ljust(42) + f" {mark}{f.metadata['help']}{valid}"
+        )
     return "\n".join(lines)
 
 
