@@ -26,7 +26,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "claims": ("gentlerl.apps.claims", "the paper's six claims judged on a reproduce.sh grid"),
     "table": (
         "gentlerl.apps.table",
-        "the SAC grid's or GentleBench's table with its pre-registered verdicts",
+        "a pre-registered grid's table (SAC, GentleBench, Method III) with its verdicts",
     ),
     "export": (
         "gentlerl.apps.export",

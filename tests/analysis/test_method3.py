@@ -8,7 +8,7 @@ from gentlerl.analysis.criteria import method3_equal_impact, method3_verdicts
 
 
 def _row(score: float, impact: float, rsp: float = 1.0) -> dict[str, float]:
-    return {"score": score, "median_impact": impact, "rsp_per_contact": rsp}
+    return {"score": score, "median_score": score, "median_impact": impact, "rsp_per_contact": rsp}
 
 
 @pytest.mark.parametrize(

@@ -147,3 +147,28 @@ def test_a_single_critic_agent_puts_the_multiplier_on_its_summed_penalty():
     assert reward_sum(td)["next", "reward"].item() == pytest.approx(1.0 - 0.5 * 3.0)  # w = 1 + 2
     with pytest.raises(KeyError, match="not one of the summed keys"):
         reward_sum.set_weight("penalty_surprise", 1.0)
+
+
+def test_the_curiosity_scale_is_shared_by_clones_and_frozen_while_evaluating():
+    """An env's clone of the transforms learns the same running scale the rewards checkpoint;
+    scoring under frozen_scale (evaluations, calibration) leaves it as it was."""
+    from gentlerl.transforms.surprise import frozen_scale
+
+    settings = GentlenessConfig(curiosity_norm=True, model_hidden=16, reward_delay=0)
+    rewards = IntrinsicRewards.from_env(ToyHandEnv(), "r+rf+rsp", settings)
+    rewards.step(1)
+    clone = rewards.transform.clone()
+    clone(pressing_rollout(ToyHandEnv()))
+    learned = rewards.transform[1].curiosity_scale
+    assert learned[1] == 1 and learned[0] > 0  # learned through the clone, seen by the original
+    with frozen_scale(rewards.transform):
+        rewards.transform(pressing_rollout(ToyHandEnv()))
+    assert rewards.transform[1].curiosity_scale == learned
+    assert rewards.transform[1].learn_scale  # switched back on
+
+
+def test_a_head_weight_for_a_head_the_loss_lacks_is_refused_naming_the_heads():
+    from tests.agent.test_learner import _learner
+
+    with pytest.raises(KeyError, match="'penalty_surprise' is not one of the heads"):
+        _learner().loss.set_head_weight("penalty_surprise", 2.0)

@@ -5,9 +5,11 @@
   is ``reproduced`` when every condition of the claim holds, ``partly`` when its weaker condition
   holds, otherwise ``not reproduced``; a claim whose runs are missing is ``no data``;
 - the SAC grid of docs/SAC.md: :func:`sac_verdict`, one per task;
-- GentleBench of docs/GENTLEBENCH.md: :func:`gentlebench_verdict`, one per task and variant.
+- GentleBench of docs/GENTLEBENCH.md: :func:`gentlebench_verdict`, one per task and variant;
+- its Method III amendment: :func:`method3_verdicts` (tests H1, H2, F1, B, N).
 
-The tables these rules judge are :mod:`gentlerl.analysis.grid_tables` (``gentlerl table``).
+The tables these rules judge are :mod:`gentlerl.analysis.grid_tables` and
+:mod:`gentlerl.analysis.method3` (``gentlerl table``).
 """
 
 from __future__ import annotations
@@ -262,7 +264,8 @@ def method3_equal_impact(new: Mapping[str, float], baseline: Mapping[str, float]
 
 def method3_verdicts(rows: Mapping[str, Mapping[str, Mapping[str, float]]]) -> dict[str, str]:
     """docs/GENTLEBENCH.md's Method III tests on the grid's rows (task -> variant -> row with
-    ``score``, ``median_impact``, ``rsp_per_contact``); a test whose rows are missing is absent.
+    ``score``, ``median_score``, ``median_impact``, ``rsp_per_contact``); a test whose rows are
+    missing is absent.
 
     H1: touch, new's success >= 0.95 at a median max impact <= 3 N. H2: fragile, new's success
     >= 0.8. F1: finger-turn_easy, new's median return >= 0.8 x ``r``'s at <= 0.5 x its median max
@@ -283,14 +286,16 @@ def method3_verdicts(rows: Mapping[str, Mapping[str, Mapping[str, float]]]) -> d
     if finger in new and "r" in rows[finger]:
         f, r = new[finger], rows[finger]["r"]
         out["F1 finger-turn_easy"] = _test(
-            f["score"] >= 0.8 * r["score"] and f["median_impact"] <= 0.5 * r["median_impact"],
-            f"return {f['score']:.1f} vs r {r['score']:.1f}, "
+            f["median_score"] >= 0.8 * r["median_score"]
+            and f["median_impact"] <= 0.5 * r["median_impact"],
+            f"median return {f['median_score']:.1f} vs r {r['median_score']:.1f}, "
             f"{f['median_impact']:.1f} vs {r['median_impact']:.1f} N",
         )
     for task, labels in rows.items():
         if "new" in labels and "baseline" in labels:
             out[f"B {task}"] = method3_equal_impact(labels["new"], labels["baseline"])
     if finger in new and "touch" in new:
-        ratio = new[finger]["rsp_per_contact"] / new["touch"]["rsp_per_contact"]
+        finger_rsp, touch_rsp = new[finger]["rsp_per_contact"], new["touch"]["rsp_per_contact"]
+        ratio = finger_rsp / touch_rsp if touch_rsp else float("nan")
         out["N curiosity size"] = _test(0.5 <= ratio <= 2.0, f"finger / touch = {ratio:.2f}")
     return out

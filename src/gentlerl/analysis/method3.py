@@ -5,7 +5,8 @@ constrained baseline side by side, in the safe-RL benchmarks' form, with the pre
 
 Reads each run's final actor's episodes (``final_eval_episodes.csv``, written by ``gentlerl
 evaluate``), its config, its ``train/penalty_surprise_per_contact_step`` and
-``train/penalty_weight`` scalars (:mod:`gentlerl.analysis.runs`).
+``train/penalty_weight`` scalars (:mod:`gentlerl.analysis.runs`); the weight's trajectory is
+printed for each task's first seed under the table.
 """
 
 from __future__ import annotations
@@ -67,15 +68,19 @@ def method3_row(seeds: list[dict[str, Any]], hand: bool) -> dict[str, Any]:
     impacts = np.concatenate([s["impacts"] for s in seeds])
     medians = [float(np.median(s["impacts"])) for s in seeds]
     rsp = [s["rsp_per_contact"] for s in seeds if np.isfinite(s["rsp_per_contact"])]
+    frames, weights = seeds[0]["weights"]
     return {
         "seeds": len(seeds),
+        "first_seed": seeds[0]["seed"],
         "scores": scores,
         "score": statistics.mean(scores),
+        "median_score": statistics.median(scores),
         "score_std": statistics.pstdev(scores),
         "median_impact": float(np.median(impacts)),
         "impact_std": statistics.pstdev(medians),
         "p90_impact": float(np.percentile(impacts, 90)),
         "rsp_per_contact": statistics.median(rsp) if rsp else float("nan"),
+        "weights": [(int(f), float(w)) for f, w in zip(frames, weights, strict=True)],
     }
 
 
@@ -99,6 +104,13 @@ def load_method3(root: Path) -> dict[str, dict[str, dict[str, Any]]]:
     }
 
 
+def _trajectory(weights: list[tuple[int, float]], points: int = 6) -> str:
+    """``w`` at ``points`` frames spread over the run, and its maximum."""
+    picks = np.linspace(0, len(weights) - 1, min(points, len(weights))).round().astype(int)
+    shown = ", ".join(f"{weights[i][1]:.2f} @ {weights[i][0] // 1000}k" for i in picks)
+    return f"{shown} (max {max(w for _, w in weights):.2f})"
+
+
 def method3_table(root: Path) -> str:
     """The markdown table, then each pre-registered test's verdict."""
     rows = load_method3(root)
@@ -118,4 +130,10 @@ def method3_table(root: Path) -> str:
             )
     lines.append("")
     lines += [f"- **{name}**: {verdict}" for name, verdict in method3_verdicts(rows).items()]
+    lines += [
+        f"- penalty weight, {task} `{label}` seed {row['first_seed']}: {_trajectory(row['weights'])}"
+        for task, labels in rows.items()
+        for label, row in labels.items()
+        if row["weights"]
+    ]
     return "\n".join(lines) + "\n"

@@ -29,8 +29,8 @@ from typing import Any
 import torch
 from torchrl.envs.utils import ExplorationType
 
-from gentlerl.config.groups import MAX_HANDS
 from gentlerl.config.layout import RunLayout
+from gentlerl.config.limits import MAX_HANDS
 from gentlerl.files import write_atomic
 
 #: Rollout modes: the deterministic actor, and the actor with its training noise.

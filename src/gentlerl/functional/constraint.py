@@ -11,6 +11,12 @@ the rewards read. Everything else follows from it by these rules, written before
 from __future__ import annotations
 
 import math
+from typing import TypeVar
+
+import torch
+
+#: A float or a tensor of them.
+T = TypeVar("T", float, torch.Tensor)
 
 #: The paper's :math:`\lambda_2` (N): the impact its acceptability sigmoid (eq. 3) puts at 1/2.
 PAPER_LAMBDA_2 = 2.0
@@ -41,7 +47,8 @@ def running_mean_update(
 
     The plain mean of the first :math:`1/\alpha_{\min}` batches, then an exponential average that
     follows the model as it learns (as TorchRL's RND normalises its intrinsic reward by running
-    statistics). ``x_k``: the batch's mean :math:`|\mathrm{nll}|` over its contact steps.
+    statistics). ``x_k``: the batch's mean magnitude of the curiosity (the NLL, or the
+    information gain with ``surprise_kind=information_gain``) over its contact steps.
     Returns ``(s_k, k)``.
     """
     if not 0 < min_rate <= 1:
@@ -51,7 +58,7 @@ def running_mean_update(
     return mean + rate * (batch_mean - mean), count
 
 
-def normalized_curiosity(nll: float, scale: float, eps: float = 1e-6) -> float:
+def normalized_curiosity(nll: T, scale: float, eps: float = 1e-6) -> T:
     r"""The curiosity of eq. 8 in units of its running scale, :math:`\mathrm{nll} / \max(s, \epsilon)`.
 
     Off the hand the penalty model's NLL pays 3-60 per contact step (the hand: 1-2, measured,

@@ -15,7 +15,12 @@ Step = TypeVar("Step", bound=Callable[..., Any])
 
 
 def compile_step(
-    step: Step, *, compile: bool = False, cudagraphs: bool = False, warmup: int = 5
+    step: Step,
+    *,
+    compile: bool = False,
+    cudagraphs: bool = False,
+    warmup: int = 5,
+    name: str = "the learner",
 ) -> Step:
     """``step`` through ``torch.compile`` and / or a CUDA graph, as TorchRL's sota-implementations.
 
@@ -34,7 +39,7 @@ def compile_step(
             )
             step = cast(Step, EagerOnBuildFailure(step, torch.compile(step)))
         else:
-            warnings.warn(f"learner.compile: {reason}; the learner runs eagerly", stacklevel=2)
+            warnings.warn(f"learner.compile: {reason}; {name} runs eagerly", stacklevel=2)
     if cudagraphs:
         step = CudaGraphModule(step, in_keys=[], out_keys=[], warmup=warmup)
     return step

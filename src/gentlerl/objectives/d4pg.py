@@ -54,10 +54,9 @@ class MultiHeadD4PGLoss(LossModule):
             them later with ``set_keys(rewards=[...])``.
         non_episodic_keys: components (a subset of ``reward_keys``) whose bootstrap ignores
             termination, e.g. the intrinsic ``penalty_surprise``.
-        policy_noise: std of the Gaussian noise added to the target actor's actions (TD3's target
-            policy smoothing, Fujimoto et al. 2018), clipped to ``[-noise_clip, noise_clip]``, the
-            noisy action clipped to [-1, 1]. 0 (default): D4PG as published.
-        noise_clip: bound of that noise.
+        policy_noise: std of the Gaussian noise on the target actor's actions (TD3's target policy
+            smoothing), clipped to ``[-noise_clip, noise_clip]``; 0 (default): D4PG as published.
+        noise_clip: bound of that noise (the noisy action is clipped to [-1, 1]).
         delay_actor, delay_value: keep target copies (TorchRL's ``HardUpdate`` / ``SoftUpdate``).
         use_prioritized_weights: weight samples by ``priority_weight`` when present ("auto").
 
@@ -74,9 +73,7 @@ class MultiHeadD4PGLoss(LossModule):
         ...              "terminated": torch.zeros(4, 1, dtype=torch.bool)}}, [4])
         >>> sorted(loss(data).keys())
         ['loss_actor', 'loss_value', 'loss_value_penalty', 'loss_value_reward', 'value_penalty', 'value_reward']
-        >>> value, _ = loss.loss_value(data)
-        >>> actor, info = loss.loss_actor(data)
-        >>> info["value"].shape
+        >>> loss.loss_actor(data)[1]["value"].shape
         torch.Size([2])
     """
 
@@ -276,6 +273,8 @@ class MultiHeadD4PGLoss(LossModule):
 
     def set_head_weight(self, key: NestedKey, weight: float) -> None:
         """``key``'s :math:`w_k`, in place (a captured graph reads it): e.g. 1 + a multiplier."""
+        if key not in self.reward_keys:
+            raise KeyError(f"set_head_weight: {key!r} is not one of the heads {self.reward_keys}")
         self.head_weights[self.reward_keys.index(key)] = float(weight)
 
     def losses(

@@ -25,6 +25,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "gentlerl.rewards.intrinsic": ("IntrinsicRewards",),
+        "gentlerl.rewards.multiplier": ("ImpactMultiplier",),
         "gentlerl.rewards.rescore": ("RescoreRewards",),
         "gentlerl.rewards.sum": ("SumRewards",),
         "gentlerl.rewards.variants": ("COMPONENTS", "VARIANTS", "Component", "Part", "reward_keys"),

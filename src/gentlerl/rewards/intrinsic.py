@@ -91,7 +91,11 @@ class IntrinsicRewards(Rescoring):
         """The transforms, losses, target updaters, optimisers and buffer of the variant."""
         settings, force_key = ing.settings, ing.force_key
         # impact is logged for every variant; the force key is any [..., n_sites, n_channels] entry
-        unit = 1.0 if settings.tolerance is None else tolerance_unit(settings.tolerance)
+        unit = (
+            1.0
+            if settings.tolerance is None
+            else tolerance_unit(settings.tolerance, settings.lam[1])
+        )
         transforms: list = [ImpactPenalty(settings.lam, unit=unit, in_keys=[force_key])]
         self.losses: dict[str, Any] = {}
         self._updaters: dict[str, HardUpdate] = {}

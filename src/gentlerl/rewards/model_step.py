@@ -43,7 +43,7 @@ class ModelStep:
         # fused: one kernel per step instead of ~10 per parameter tensor
         self._adam_options = {"fused": True, "capturable": cudagraphs}
         self.optimizer = torch.optim.Adam(loss.parameters(), lr=lr, **self._adam_options)
-        self._total = compile_step(self._summed_loss, compile=compile)
+        self._total = compile_step(self._summed_loss, compile=compile, name="a reward model")
         self._step = compile_step(self._gradient_step, cudagraphs=cudagraphs)
 
     def _summed_loss(self, batch: TensorDictBase) -> torch.Tensor:

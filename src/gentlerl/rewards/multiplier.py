@@ -69,8 +69,9 @@ class ImpactMultiplier:
                 raise ValueError(f"an episode's max impact must be finite and >= 0, got {impact}")
             self.recent.append(float(impact))
             cost = overshoot(statistics.median(self.recent), self.tolerance)
+            previous = self.cost if self.episodes else cost  # no derivative kick at the first
             self.multiplier, self.integral = pid_lagrangian(
-                cost, 0.0, self.integral, self.cost, self.gains
+                cost, 0.0, self.integral, previous, self.gains
             )
             self.cost = cost
             self.episodes += 1

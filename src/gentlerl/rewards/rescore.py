@@ -84,7 +84,10 @@ class Rescoring:
         again with the current models, then sums the components with ``reward_sum``.
 
         ``rb.append_transform(rewards.rescore_transform(reward_sum))`` on a buffer of 1-step
-        transitions; an n-step buffer uses :meth:`rescore_windows` instead.
+        transitions; an n-step buffer uses :meth:`rescore_windows` instead. Unlike that one
+        (penalty surprise only, and only with ``rescore_surprise``), this transform scores every
+        model-reading reward again, whatever ``rescore_surprise`` says: a 1-step transition
+        holds all it needs, so nothing is left stale.
         """
         rescorer = RescoreRewards(self.gated_transforms, reward_sum)
         self._rescorers.append(rescorer)

@@ -81,7 +81,8 @@ class SumRewards(Transform):
     def set_weight(self, key: str, weight: float) -> None:
         """The factor of component ``key`` from now on (a sampled batch is summed again by
         :class:`~gentlerl.rewards.RescoreRewards`), e.g. ``ImpactMultiplier.weight`` on
-        ``"penalty"``: a single-critic agent's Lagrange-weighted impact penalty."""
+        ``"penalty"``: a single-critic agent's Lagrange-weighted impact penalty. The weights are
+        in no state dict: a resumed agent sets them again (from ``ImpactMultiplier.weight``)."""
         if key not in self.in_keys:
             raise KeyError(f"SumRewards: {key!r} is not one of the summed keys {self.in_keys}")
         if not math.isfinite(weight):

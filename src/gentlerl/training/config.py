@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from gentlerl import keys
 from gentlerl.config import fields
 from gentlerl.config.fields import setting
 from gentlerl.config.groups import (
@@ -178,7 +179,7 @@ def _run_problems(cfg: TrainConfig) -> list[str]:
     problems = []
     if not 0 <= cfg.seed < 2**32:
         problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
-    if cfg.gentleness.multiplier != "none" and "penalty" not in cfg.reward_keys:
+    if cfg.gentleness.multiplier != "none" and keys.PENALTY not in cfg.reward_keys:
         problems.append(
             f"gentleness.multiplier={cfg.gentleness.multiplier} weighs the penalty head, which "
             f"variant={cfg.variant} lacks (use a variant with rf)"

@@ -27,6 +27,7 @@ from torchrl.envs.transforms import Compose, Transform
 from gentlerl import keys
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.transforms import PenaltySurprise
+from gentlerl.transforms.surprise import frozen_scale
 
 
 def expected_value(logits: torch.Tensor, atoms: torch.Tensor) -> torch.Tensor:
@@ -152,7 +153,7 @@ def measure_calibration(
     Args:
         loss: the run's D4PG loss (online critic and actor, ``episodic`` flags, reward keys).
         transform: writes the reward components under ``"next"`` (the run's
-            :class:`~gentlerl.agent.IntrinsicRewards` ``transform``, models and gate as they are).
+            :class:`~gentlerl.rewards.IntrinsicRewards` ``transform``, models and gate as they are).
         episodes: ``[T_i]`` rollouts ending at their first ``done`` or cut by a step limit (as
             :func:`~gentlerl.training.evaluation.rollout_episodes` returns them); not modified.
         gamma: the learner's discount.
@@ -194,10 +195,13 @@ def measure_calibration(
 
 
 def _rewarded_steps(transform: Transform, episodes: Sequence[TensorDictBase]) -> TensorDictBase:
-    """The episodes' steps end to end (without the touch grids), with ``transform``'s rewards."""
-    return transform(
-        torch.cat([e.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)) for e in episodes], 0)
-    )
+    """The episodes' steps end to end (without the touch grids), with ``transform``'s rewards
+    (scored with the curiosity's running scale as it is: :func:`frozen_scale`)."""
+    members = transform if isinstance(transform, Compose) else [transform]
+    with frozen_scale(members):
+        return transform(
+            torch.cat([e.exclude(keys.TOUCH_GRID, ("next", keys.TOUCH_GRID)) for e in episodes], 0)
+        )
 
 
 def penalty_surprise_sources(

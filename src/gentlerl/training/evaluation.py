@@ -206,14 +206,16 @@ def evaluate_actor(
     ``seed``, as ``gentlerl evaluate --episodes N --seed S`` measures a saved policy.
 
     Returns :func:`summarize`'s numbers and ``median_max_impact_successful`` (NaN when no
-    episode succeeded). Any TorchRL actor that reads the env's observation works (a SAC
+    episode succeeded). The same ``seed`` gives the same episodes; torch's global random state is
+    left as it was (an evaluation in the middle of training does not reseed it). Any TorchRL actor that reads the env's observation works (a SAC
     ``ProbabilisticActor`` acts with its mode).
     """
     check_episodes(episodes)
     env = make_eval_env(env_factory, seed, episodes, force_key)
-    torch.manual_seed(seed)
     try:
-        _, per_episode = evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
+        with torch.random.fork_rng():  # the caller's random stream goes on as if not evaluated
+            torch.manual_seed(seed)
+            _, per_episode = evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
     finally:
         env.close()
     successful = [e["max_impact"] for e in per_episode if e.get("success") == 1.0]

@@ -4,12 +4,14 @@ Each transform reads the target copy of the model owned by its
 :class:`~gentlerl.objectives.EnsembleModelLoss` (the RND-style transform/loss pair): the loss trains
 the model, the transform turns its predictions into a reward. Rewards are 0 until
 :attr:`active` is switched on (the paper's 20,000-step reward delay; see
-:class:`~gentlerl.agent.IntrinsicRewards`).
+:class:`~gentlerl.rewards.IntrinsicRewards`).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import contextlib
+from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING, Any
 
 import torch
 from tensordict import TensorDictBase
@@ -133,8 +135,22 @@ class PenaltySurprise(ModelRewardTransform):
         self.nll_floor = nll_floor
         self.kind = kind
         self.normalize = normalize
-        #: The curiosity's running mean magnitude on contact steps and the batches it averages.
-        self.curiosity_scale: tuple[float, int] = (0.0, 0)
+        #: Whether scoring folds a batch into :attr:`curiosity_scale` (off: :func:`frozen_scale`).
+        self.learn_scale = True
+        # [running mean magnitude of the curiosity on contact steps, batches it averages]: a
+        # buffer changed in place, so that a clone (an env's copy) shares it as it shares the gate
+        self.register_buffer("_scale", torch.zeros(2, dtype=torch.float64), persistent=False)
+
+    @property
+    def curiosity_scale(self) -> tuple[float, int]:
+        """``(mean, count)``: the curiosity's running mean magnitude on contact steps and the
+        batches it averages (checkpointed by ``IntrinsicRewards``)."""
+        mean, count = self._scale.tolist()
+        return mean, int(count)
+
+    @curiosity_scale.setter
+    def curiosity_scale(self, value: tuple[float, int]) -> None:
+        self._scale.copy_(torch.tensor([float(value[0]), float(value[1])], dtype=torch.float64))
 
     def _curiosity(
         self, penalty: torch.Tensor, mean: torch.Tensor, var: torch.Tensor
@@ -153,7 +169,7 @@ class PenaltySurprise(ModelRewardTransform):
         if not self.normalize:
             return curiosity
         finite = curiosity[torch.isfinite(curiosity)]
-        if learn and finite.numel():
+        if learn and self.learn_scale and finite.numel():
             mean, count = self.curiosity_scale
             self.curiosity_scale = running_mean_update(mean, count, finite.abs().mean().item())
         return normalized_curiosity(curiosity, self.curiosity_scale[0])
@@ -213,3 +229,18 @@ class PenaltySurprise(ModelRewardTransform):
             "aleatoric": var.mean(0),
             "epistemic": mean.var(0, unbiased=False),
         }
+
+
+@contextlib.contextmanager
+def frozen_scale(transforms: Iterable[Any]) -> Iterator[None]:
+    """Score with :class:`PenaltySurprise`'s running curiosity scale as it is, not learning
+    from the batches (evaluations and diagnostics must not change what training reads)."""
+    members = [t for t in transforms if isinstance(t, PenaltySurprise)]
+    before = [t.learn_scale for t in members]
+    for t in members:
+        t.learn_scale = False
+    try:
+        yield
+    finally:
+        for t, learn in zip(members, before, strict=True):
+            t.learn_scale = learn
