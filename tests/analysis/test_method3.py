@@ -70,3 +70,15 @@ def test_the_table_labels_the_four_rows_and_prints_the_tests(tmp_path, capsys):
     assert "| touch | `baseline` | 0.00 ± 0.00 (0.00 / 0.00) |" in out
     assert "- **H1 touch**: does not hold (success 0.75 at 2.50 N)" in out
     assert "- **B touch**: not at equal impact" in out
+
+
+def test_runs_that_differ_in_method_iiis_switches_are_not_pooled():
+    from gentlerl.analysis.runs import Run
+
+    paper = Run(path=None, config={"variant": "r+rf+rsp", "gentleness": {"lam_prime": [2, 2]}})
+    steered = {"lam_prime": [2, 2], "curiosity_norm": True, "multiplier": "pid"}
+    new = Run(path=None, config={"variant": "r+rf+rsp", "gentleness": steered})
+    baseline = Run(path=None, config={"variant": "r+rf", "gentleness": steered})
+    assert paper.label == "r+rf+rsp (λ'₂=2)"
+    assert new.label == "r+rf+rsp (λ'₂=2) + norm + pid"
+    assert baseline.label == "r+rf + pid"

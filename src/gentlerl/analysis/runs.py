@@ -57,7 +57,14 @@ class Run:
 
     @property
     def label(self) -> str:
-        return self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
+        """The variant, its lambda'_2, and Method III's switches where on (``+ norm``, ``+ pid``):
+        runs that differ in them are not pooled."""
+        label = self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
+        if "rsp" in self.variant and self.setting("gentleness", "curiosity_norm", False):
+            label += " + norm"
+        if self.setting("gentleness", "multiplier", "none") != "none":
+            label += f" + {self.setting('gentleness', 'multiplier')}"
+        return label
 
     @property
     def task(self) -> str | None:
