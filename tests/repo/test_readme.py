@@ -236,3 +236,16 @@ def test_the_sac_recipe_imports_only_the_public_names_of_gentlerls_packages():
         assert node.module.count(".") == 1, f"{node.module} is a module inside a package"
         public = importlib.import_module(node.module).__all__
         assert {alias.name for alias in node.names} <= set(public), node.module
+
+
+def test_the_tolerance_rule_the_readme_states_is_the_codes():
+    """ "impacts in units of T/2, so T = 2 N is the paper's hand": the rule's lambda_2."""
+    from gentlerl.functional import tolerance_unit
+    from gentlerl.functional.constraint import PAPER_LAMBDA_2
+
+    text = " ".join(README.read_text().split())
+    assert (
+        f"impacts in units of T/{PAPER_LAMBDA_2:g}, so T = {PAPER_LAMBDA_2:g} N is the paper's hand"
+        in text
+    )
+    assert tolerance_unit(PAPER_LAMBDA_2) == 1.0  # the hand's newtons, unscaled
