@@ -253,10 +253,8 @@ def _test(holds: bool, numbers: str) -> str:
 def method3_equal_impact(new: Mapping[str, float], baseline: Mapping[str, float]) -> str:
     """Test B: the new method's score (success or return) >= the baseline's when its median max
     impact is at most 1.25 x the baseline's; above that, "not at equal impact"."""
-    numbers = (
-        f"{new['score']:.2f} at {new['median_impact']:.2f} N vs "
-        f"{baseline['score']:.2f} at {baseline['median_impact']:.2f} N"
-    )
+    numbers = f"{new['score']:.2f} at {new['median_impact']:.2f} N vs "
+    numbers += f"{baseline['score']:.2f} at {baseline['median_impact']:.2f} N"
     if new["median_impact"] > 1.25 * baseline["median_impact"]:
         return f"not at equal impact ({numbers})"
     return _test(new["score"] >= baseline["score"], numbers)
