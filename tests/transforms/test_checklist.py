@@ -149,17 +149,23 @@ def test_env(name):
     torch.testing.assert_close(pressing_rollout(env)["next", subject.key], reference)
 
 
+def _agrees(env, key, reference) -> None:
+    """``env`` passes ``check_env_specs`` and its pressing rollout writes ``reference``'s ``key``
+    rows; the env is closed either way."""
+    try:
+        check_env_specs(env)
+        _rows_equal(pressing_rollout(env), key, reference)
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("name", ENV_SUBJECTS)
 def test_serial_env(name):
     """Appended to a SerialEnv (outside its envs)."""
     subject = SUBJECTS[name]
     transform, _, reference = _reference(subject)
     env = TransformedEnv(SerialEnv(2, subject.base), transform.clone())
-    try:
-        check_env_specs(env)
-        _rows_equal(pressing_rollout(env), subject.key, reference)
-    finally:
-        env.close()
+    _agrees(env, subject.key, reference)
 
 
 @pytest.mark.parametrize("name", ENV_SUBJECTS)
@@ -168,11 +174,7 @@ def test_env_in_serial(name):
     subject = SUBJECTS[name]
     transform, _, reference = _reference(subject)
     env = SerialEnv(2, functools.partial(_in_env, subject.base, transform))
-    try:
-        check_env_specs(env)
-        _rows_equal(pressing_rollout(env), subject.key, reference)
-    finally:
-        env.close()
+    _agrees(env, subject.key, reference)
 
 
 @pytest.mark.parametrize("name", ENV_SUBJECTS)
@@ -181,11 +183,7 @@ def test_parallel_env(name):
     subject = SUBJECTS[name]
     transform, _, reference = _reference(subject)
     env = TransformedEnv(ParallelEnv(2, subject.base, mp_start_method="fork"), transform.clone())
-    try:
-        check_env_specs(env)
-        _rows_equal(pressing_rollout(env), subject.key, reference)
-    finally:
-        env.close()
+    _agrees(env, subject.key, reference)
 
 
 @pytest.mark.parametrize("name", ENV_SUBJECTS)
