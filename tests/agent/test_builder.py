@@ -26,7 +26,7 @@ def test_sizes_come_from_the_env_specs_batch_dims_left_out():
 
 def test_parts_fit_together():
     builder = AgentBuilder(make_config(**TINY, replay={"batch_size": 4}), ToyHandEnv())
-    rewards = builder.make_intrinsic_rewards()
+    rewards = builder.rewards
     learner = builder.make_learner()
     assert rewards.reward_keys == learner.loss.reward_keys == builder.reward_keys
     assert set(rewards.losses) == {"penalty"}  # r+rf+rsp learns the penalty ensemble only
@@ -42,8 +42,8 @@ def test_the_penalty_surprise_head_gets_its_own_per_step_bound():
     # r^sp's head spans +-3 x the discounted horizon of the env's episode (gamma 0.99).
     builder = AgentBuilder(make_config(**TINY), ToyHandEnv())
     horizon = (1 - 0.99**builder.horizon) / 0.01
-    base = builder.head_supports()
+    base = builder.supports
     cfg = make_config(**{**TINY, "network": {**TINY["network"], "penalty_surprise_bound": 3.0}})
-    lows, highs = AgentBuilder(cfg, ToyHandEnv()).head_supports()
+    lows, highs = AgentBuilder(cfg, ToyHandEnv()).supports
     assert (lows[:2], highs[:2]) == (base[0][:2], base[1][:2])  # task and penalty unchanged
     assert lows[2] == -highs[2] and abs(highs[2] - 3.0 * horizon) < 1e-9

@@ -222,7 +222,7 @@ def test_config_names_the_external_env_and_validates_its_fields():
     builder = AgentBuilder(cfg, env)
     assert (builder.obs_dim, builder.action_dim, builder.horizon) == (9, 2, 1000)
     assert builder.feature_shapes == {"position": (4,), "velocity": (3,), "touch": (2,)}
-    assert builder.make_intrinsic_rewards().force_key == "force"
+    assert builder.rewards.force_key == "force"
     bad = {"name": "dm_control:finger-fly", "force_adapter": "nope"}
     with pytest.raises(ValueError) as err:
         make_config(env=bad)

@@ -26,7 +26,6 @@ WITHOUT_A_TEST = {
     "gentlerl.config.layout",  # RunLayout: tests/training/test_builders.py, test_logging.py
     "gentlerl.config.limits",  # size limits: tests/apps/test_overrides.py through `gentlerl train`
     "gentlerl.config.presets",  # SCALES: tests/config/test_config.py through make_config
-    "gentlerl.config.rules",  # validation: tests/config/test_config.py through make_config
     "gentlerl.envs.environment",
     "gentlerl.envs.rendering",
     "gentlerl.envs.task_names",
@@ -35,7 +34,6 @@ WITHOUT_A_TEST = {
     "gentlerl.objectives.models",  # tests/models/test_ensemble.py
     "gentlerl.objectives.value",
     "gentlerl.rewards.chain",
-    "gentlerl.rewards.specs",
     "gentlerl.training.env_probe",
     "gentlerl.training.migration",  # old checkpoints' configs: tests/config/test_config.py
     "gentlerl.training.policy_weights",

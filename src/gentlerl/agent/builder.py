@@ -30,10 +30,10 @@ from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.rewards.intrinsic import IntrinsicRewards
-from gentlerl.rewards.specs import env_feature_shapes
+from gentlerl.rewards.specs import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.variants import (
+    critic_supports,
     discounted_horizon,
-    head_supports,
     intrinsic_keys,
     reward_keys,
 )
@@ -53,18 +53,6 @@ class AgentConfig(Protocol):
     gentleness: GentlenessConfig
 
 
-def episode_steps(env: EnvBase, default: int = 1000) -> int:
-    """``env.time_limit`` (control steps per episode) where the env names one, else ``default``.
-
-    Read without ``getattr`` on the env: a batched TorchRL env forwards unknown attributes to its
-    workers, which recurses before they start.
-    """
-    limit = vars(env).get("time_limit")
-    if limit is None and isinstance(getattr(type(env), "time_limit", None), property):
-        limit = env.time_limit
-    return default if limit is None else int(limit)
-
-
 class AgentBuilder:
     """Makes the agent of ``cfg`` for ``env``, whose specs give every size.
 
@@ -74,54 +62,42 @@ class AgentBuilder:
             writes: the hand's joint positions, velocities and touch; else the entries an
             external env's ``observation`` concatenates (finger: position, velocity, touch).
         reward_keys: the variant's reward components, in critic-head order.
+        supports: each critic head's ``(v_min, v_max)`` (:func:`~gentlerl.rewards.variants.critic_supports`).
+        rewards: the variant's :class:`~gentlerl.rewards.IntrinsicRewards`.
     """
 
     def __init__(self, cfg: AgentConfig, env: EnvBase) -> None:
         self.cfg = cfg
         self.obs_dim = env.observation_spec[keys.OBSERVATION].shape[-1]
         self.action_dim = env.action_spec.shape[-1]
-        self.feature_shapes = env_feature_shapes(env)
-        self.reward_keys = reward_keys(cfg.variant)
         #: Steps per episode (the env's ``time_limit``, else 1000): the dense heads' horizon.
         self.horizon = episode_steps(env)
-
-    def head_supports(self) -> tuple[list[float], list[float]]:
-        """Each critic head's ``(v_min, v_max)``: see :func:`gentlerl.rewards.variants.head_supports`.
-
-        A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
-        ``network.penalty_surprise_bound`` where set) x the discounted horizon of
-        ``time_limit`` steps (the largest return of a reward of that size at every step).
-        """
-        net = self.cfg.network
-        horizon = discounted_horizon(self.cfg.learner.gamma, self.horizon)
-        bound, rsp = net.dense_reward_bound, net.penalty_surprise_bound
-        return head_supports(
-            self.reward_keys,
-            v_min=net.v_min,
-            v_max=net.v_max,
-            bounded=net.bounded_support,
-            dense_span=None if bound is None else bound * horizon,
-            spans=None if rsp is None else {keys.PENALTY_SURPRISE: rsp * horizon},
+        self.feature_shapes = env_feature_shapes(env)
+        self.reward_keys = reward_keys(cfg.variant)
+        self.intrinsic_keys = intrinsic_keys(self.reward_keys)
+        self.supports = critic_supports(
+            self.reward_keys, cfg.network, discounted_horizon(cfg.learner.gamma, self.horizon)
         )
-
-    def make_intrinsic_rewards(self) -> IntrinsicRewards:
-        return IntrinsicRewards(
-            self.cfg.variant,
-            self.cfg.gentleness,
+        #: The variant's reward transforms and their models (on ``learner.device``, launched as
+        #: the learner's update is), checked against ``env``: it must write what they read.
+        self.rewards = IntrinsicRewards(
+            cfg.variant,
+            cfg.gentleness,
             obs_dim=self.obs_dim,
             action_dim=self.action_dim,
             feature_shapes=self.feature_shapes,
-            seed=self.cfg.seed,
-            force_key=self.cfg.env.force,
-            device=self.cfg.learner.device,  # the models learn beside the learner, launched
-            compile=self.cfg.learner.compile,  # as its update is
-            cudagraphs=self.cfg.learner.cudagraphs,
+            seed=cfg.seed,
+            force_key=cfg.env.force,
+            device=cfg.learner.device,
+            compile=cfg.learner.compile,
+            cudagraphs=cfg.learner.cudagraphs,
         )
+        check_env_keys(env, self.rewards.transform, self.reward_keys)
 
     def make_learner(self) -> Learner:
         net, learner = self.cfg.network, self.cfg.learner
         actor = make_actor(self.obs_dim, self.action_dim, net.actor_hidden)
-        v_min, v_max = self.head_supports()
+        v_min, v_max = self.supports
         critic = make_critic(
             self.obs_dim,
             self.action_dim,
@@ -135,9 +111,7 @@ class AgentBuilder:
             actor,
             critic,
             reward_keys=self.reward_keys,
-            non_episodic_keys=[]
-            if learner.episodic_intrinsic
-            else intrinsic_keys(self.reward_keys),
+            non_episodic_keys=[] if learner.episodic_intrinsic else self.intrinsic_keys,
             policy_noise=learner.policy_noise,
         )
         loss.make_value_estimator(gamma=learner.gamma)

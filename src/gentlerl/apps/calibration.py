@@ -87,7 +87,7 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     try:
         env = default_env_factory(cfg)()  # the run's own env (the hand, or an external one)
         builder = AgentBuilder(cfg, env)
-        learner, rewards = builder.make_learner(), builder.make_intrinsic_rewards()
+        learner, rewards = builder.make_learner(), builder.rewards
         check_critic_supports(state, learner.loss.value_network, ckpt)
         learner.loss.load_state_dict(state["learner"]["networks"])
         rewards.load_state_dict(state["intrinsic"])

@@ -1,12 +1,53 @@
-"""What an env's specs say about the agent's sizes: observation, action, the dynamics model's
-feature groups."""
+"""What an env's specs say about the agent: its sizes (observation, action, the dynamics model's
+feature groups), its episode length, and whether it writes what the reward transforms read."""
 
 from __future__ import annotations
 
 import torch
-from torchrl.envs import CatTensors, EnvBase
+from torchrl.envs import CatTensors, EnvBase, Transform, TransformedEnv
 
 from gentlerl import keys
+
+#: What a run reads from every env step besides the variant's reward components (``success``
+#: and ``broken`` may be absent: an episode is then judged by its return).
+REQUIRED_ENV_KEYS = (keys.OBSERVATION,)
+
+
+def episode_steps(env: EnvBase, default: int = 1000) -> int:
+    """``env.time_limit`` (control steps per episode) where the env names one, else ``default``.
+
+    Read without ``getattr`` on the env: a batched TorchRL env forwards unknown attributes to its
+    workers, which recurses before they start.
+    """
+    limit = vars(env).get("time_limit")
+    if limit is None and isinstance(getattr(type(env), "time_limit", None), property):
+        limit = env.time_limit
+    return default if limit is None else int(limit)
+
+
+def check_env_keys(env: EnvBase, transform: Transform, reward_keys: list[str]) -> None:
+    """One clear error if ``env`` + the reward ``transform`` do not produce what a run reads.
+
+    That is :data:`REQUIRED_ENV_KEYS`, ``impact`` (``ImpactPenalty``, logged for every variant)
+    and every reward component in ``reward_keys``.
+    """
+    try:
+        transformed = TransformedEnv(env, transform.clone(), auto_unwrap=False)
+        produced = set(transformed.full_reward_spec.keys(True, True)) | set(
+            transformed.full_observation_spec.keys(True, True)
+        )
+    except KeyError as err:
+        raise ValueError(
+            f"the env does not produce {err} that the reward transforms read "
+            f"(env observation keys: {sorted(map(str, env.full_observation_spec.keys(True, True)))})"
+        ) from err
+    wanted = [*REQUIRED_ENV_KEYS, keys.IMPACT, *reward_keys]
+    missing = [k for k in wanted if k not in produced]
+    if missing:
+        raise ValueError(
+            f"key(s) {missing} needed by the run are produced neither by the env nor by the "
+            f"reward transforms (produced: {sorted(map(str, produced))})"
+        )
 
 
 def observation_sources(env: EnvBase, obs_key: str = keys.OBSERVATION) -> list[str]:

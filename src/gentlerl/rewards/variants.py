@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from gentlerl import keys
-from gentlerl.config import GentlenessConfig
+from gentlerl.config import GentlenessConfig, NetworkConfig
 
 if TYPE_CHECKING:
     from torchrl.envs.transforms import Transform
@@ -256,3 +256,24 @@ def head_supports(
         lows.append(float(lo))
         highs.append(float(hi))
     return lows, highs
+
+
+def critic_supports(
+    reward_keys: Sequence[str], network: NetworkConfig, horizon: float
+) -> tuple[list[float], list[float]]:
+    """Each critic head's ``(v_min, v_max)`` under ``network``'s settings (:func:`head_supports`).
+
+    A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
+    ``network.penalty_surprise_bound`` where set) x ``horizon``, the discounted horizon of an
+    episode (:func:`discounted_horizon`): the largest return of a reward of that size at every
+    step.
+    """
+    bound, rsp = network.dense_reward_bound, network.penalty_surprise_bound
+    return head_supports(
+        reward_keys,
+        v_min=network.v_min,
+        v_max=network.v_max,
+        bounded=network.bounded_support,
+        dense_span=None if bound is None else bound * horizon,
+        spans=None if rsp is None else {keys.PENALTY_SURPRISE: rsp * horizon},
+    )

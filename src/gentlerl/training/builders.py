@@ -72,16 +72,10 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
 
 def prepare_process(cfg: TrainConfig) -> None:
     """This process's side of a run: torch's threads, a missing pandas recorded
-    (:func:`record_missing_pandas`), every global seed, and with
-    ``collector.kind="ray"`` the Ray cluster joined (Ray installed, cluster reachable) before
-    anything is written."""
+    (:func:`record_missing_pandas`) and every global seed."""
     torch.set_num_threads(cfg.num_threads)
     record_missing_pandas()
     seed_everything(cfg.seed)
-    if cfg.collector.kind == "ray":
-        from gentlerl.distributed.cluster import join_cluster
-
-        join_cluster(cfg.collector.ray_address)
 
 
 def _seeded_env(env_factory: EnvFactory, seed: int) -> EnvBase:
@@ -127,37 +121,6 @@ def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> Env
     return partial(env_factory, num_envs=num_envs, num_threads=threads)
 
 
-#: What the loop reads from every env step besides the variant's reward components.
-REQUIRED_ENV_KEYS = (keys.OBSERVATION,)
-#: What the loop reads where the env writes it: without them an episode is judged by its return.
-OPTIONAL_ENV_KEYS = (keys.SUCCESS, keys.BROKEN)
-
-
-def check_env_keys(env: EnvBase, rewards: IntrinsicRewards) -> None:
-    """One clear error if env + reward transforms do not produce what the run reads.
-
-    That is :data:`REQUIRED_ENV_KEYS`, ``impact`` (``ImpactPenalty``, logged for every variant)
-    and every reward component of the variant (:data:`OPTIONAL_ENV_KEYS` may be absent).
-    """
-    try:
-        transformed = TransformedEnv(env, rewards.transform.clone(), auto_unwrap=False)
-        produced = set(transformed.full_reward_spec.keys(True, True)) | set(
-            transformed.full_observation_spec.keys(True, True)
-        )
-    except KeyError as err:
-        raise ValueError(
-            f"the env does not produce {err} that the reward transforms read "
-            f"(env observation keys: {sorted(map(str, env.full_observation_spec.keys(True, True)))})"
-        ) from err
-    wanted = [*REQUIRED_ENV_KEYS, keys.IMPACT, *rewards.reward_keys]
-    missing = [k for k in wanted if k not in produced]
-    if missing:
-        raise ValueError(
-            f"key(s) {missing} needed by the run are produced neither by the env nor by the "
-            f"reward transforms (produced: {sorted(map(str, produced))})"
-        )
-
-
 class AgentParts(NamedTuple):
     """What a run trains, as :func:`make_agent` builds it."""
 
@@ -173,20 +136,18 @@ def make_agent(
     cfg: TrainConfig, env_factory: EnvFactory, probe: EnvBase | None = None
 ) -> AgentParts:
     """The agent of ``cfg``, sized from the env ``probe`` (closed here; default: one of
-    ``env_factory``) whose keys are checked first (:func:`check_env_keys`); the beta schedule
-    spans the run's ``utd_ratio`` updates."""
+    ``env_factory``), which must write what the reward transforms read (the builder checks it);
+    the beta schedule spans the run's ``utd_ratio`` updates."""
     probe = probe if probe is not None else env_factory()
     try:
         builder = AgentBuilder(cfg, probe)
-        rewards = builder.make_intrinsic_rewards()
-        check_env_keys(probe, rewards)
     finally:
         probe.close()
     learner = builder.make_learner()
     col = cfg.collector
     updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
-    writer, rb, beta_schedule = builder.make_replay(updates, rewards.window_keys)
-    return AgentParts(builder, rewards, learner, writer, rb, beta_schedule)
+    writer, rb, beta_schedule = builder.make_replay(updates, builder.rewards.window_keys)
+    return AgentParts(builder, builder.rewards, learner, writer, rb, beta_schedule)
 
 
 def make_collector(

@@ -1,14 +1,15 @@
 """A training run's config: :class:`TrainConfig` (what the run is, where it goes, and the groups
 of :mod:`gentlerl.config`), built from a scale preset and overrides, and validated up front.
 
-Each field is declared once (:func:`~gentlerl.config.fields.setting`): :func:`validate` reads the
-declarations for types, choices and ranges, then applies the rules that tie fields together.
+Each field is declared once (:func:`~gentlerl.config.fields.setting`): :func:`validate` runs the
+checks :data:`CHECKS` lists, in one place: the declarations' types, then their choices and ranges
+and the rules that tie fields together (each group's, the Ray address, the env's keywords).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -151,21 +152,6 @@ def preset_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
     return TrainConfig(**values, **groups)
 
 
-def validate(cfg: TrainConfig) -> None:
-    """Raise one ``ValueError`` listing every problem, before anything starts: types, then each
-    field's declared choices and range, then the rules tying fields together."""
-    problems = fields.type_problems(cfg) + _resume_problems(cfg)
-    if problems:  # the range checks below compare numbers
-        raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
-    problems = fields.declared_problems(cfg) + _run_problems(cfg)
-    for name, rule in GROUP_RULES.items():
-        problems += rule(getattr(cfg, name))
-    problems += ray_problems(cfg.collector)
-    problems += _env_problems(cfg)
-    if problems:
-        raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))
-
-
 def _resume_problems(cfg: TrainConfig) -> list[str]:
     """true: continue (needs the checkpoint); false: start (refuses an existing run); auto: either."""
     if isinstance(cfg.resume, bool) or cfg.resume == "auto":
@@ -186,6 +172,16 @@ def _run_problems(cfg: TrainConfig) -> list[str]:
         )
     problem = run_dir_problem(cfg.run_dir)
     return problems + ([problem] if problem else [])
+
+
+def _group_problems(cfg: TrainConfig) -> list[str]:
+    """Each group's rules beyond its fields' declared ranges (:data:`GROUP_RULES`)."""
+    return [p for name, rule in GROUP_RULES.items() for p in rule(getattr(cfg, name))]
+
+
+def _ray_problems(cfg: TrainConfig) -> list[str]:
+    """The Ray collector's rules (:func:`~gentlerl.distributed.collector.ray_problems`)."""
+    return ray_problems(cfg.collector)
 
 
 def _env_problems(cfg: TrainConfig) -> list[str]:
@@ -237,3 +233,21 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
         twice = sorted({k for k in keys if keys.count(k) > 1})
         problems.append(f"env.observation_keys={list(keys)} names {twice} more than once")
     return problems
+
+
+#: Every check of a run's config, in two passes: the types (and ``resume``'s three values) first,
+#: since the second pass compares numbers; then each field's declared choices and range and the
+#: rules that tie fields together. Adding a check is adding it here.
+CHECKS: tuple[tuple[Callable[[TrainConfig], list[str]], ...], ...] = (
+    (fields.type_problems, _resume_problems),
+    (fields.declared_problems, _run_problems, _group_problems, _ray_problems, _env_problems),
+)
+
+
+def validate(cfg: TrainConfig) -> None:
+    """Raise one ``ValueError`` listing every problem of a pass of :data:`CHECKS`, before
+    anything starts."""
+    for checks in CHECKS:
+        problems = [problem for check in checks for problem in check(cfg)]
+        if problems:
+            raise ValueError("invalid training config:\n  - " + "\n  - ".join(problems))

@@ -22,6 +22,7 @@ from torchrl.envs import EnvBase
 
 from gentlerl import keys
 from gentlerl.config.layout import RunLayout
+from gentlerl.distributed.cluster import join_cluster
 from gentlerl.files import write_atomic
 from gentlerl.training import guards, run_state
 from gentlerl.training.builders import (
@@ -63,8 +64,10 @@ class Trainer:
         # Before anything is written: a refused resume leaves no trace in the run directory.
         self.resume_state = guards.load_resume_state(cfg, self.layout.checkpoint)
         prepare_process(cfg)
-        self.layout.root.mkdir(parents=True, exist_ok=True)
         agent = make_agent(cfg, self.env_factory, probe)
+        if cfg.collector.kind == "ray":  # Ray installed and the cluster reachable, or no run
+            join_cluster(cfg.collector.ray_address)
+        self.layout.root.mkdir(parents=True, exist_ok=True)
         self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
         self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
