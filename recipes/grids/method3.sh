@@ -7,18 +7,21 @@
 # (`gentlerl evaluate`, seed 0) and the table (`gentlerl table method3`).
 #
 #   bash recipes/grids/method3.sh [--workers N] [--out DIR] [--episodes N]
-#                                 [--tasks finger_turn_easy,touch,fragile]
+#                                 [--tasks finger_turn_easy,touch,fragile] [--kinds ,_steered]
+# --kinds picks the sweep files per task (method3_<task><kind>.yaml): "" the unsteered pair,
+# _steered the first amendment's steered pair, _paced the second amendment's (touch, fragile).
 # Resumable: finished runs (DONE) are skipped; evaluations are redone.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
-workers=2 out=runs/method3 episodes=10 tasks=finger_turn_easy,touch,fragile
+workers=2 out=runs/method3 episodes=10 tasks=finger_turn_easy,touch,fragile kinds=,_steered
 while (($#)); do
   case "$1" in
     --workers) workers=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --episodes) episodes=$2; shift 2 ;;
     --tasks) tasks=$2; shift 2 ;;
+    --kinds) kinds=$2; shift 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -32,7 +35,8 @@ for task in ${tasks//,/ }; do
     touch|fragile) per=(--set logging.eval_every_frames=5000 --set collector.num_envs=1) ;;
     *) per=(--set logging.eval_every_frames=10000) ;;
   esac
-  for kind in "" _steered; do
+  IFS=, read -r -a kind_list <<< "$kinds,"  # the trailing comma keeps a leading empty kind
+  for kind in "${kind_list[@]}"; do
     gentlerl sweep "recipes/sweeps/method3/method3_$task$kind.yaml" --workers "$workers" \
       --out "$out" "${budget[@]}" "${per[@]}"
   done

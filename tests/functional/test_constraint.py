@@ -61,6 +61,20 @@ def test_the_pid_multiplier_by_hand():
     assert integral == 0.0 and mu == 0.0
 
 
+def test_the_pid_integral_is_capped_by_integral_max():
+    # anti-windup: e = 2 per step with K_I = 1 would store 2, 4, 6; capped at 3 it stores 2, 3, 3
+    gains, integral = (0.0, 1.0, 0.0), 0.0
+    stored = []
+    for _ in range(3):
+        mu, integral = pid_lagrangian(2.0, 0.0, integral, 2.0, gains, integral_max=3.0)
+        stored.append(integral)
+    assert stored == [2.0, 3.0, 3.0] and mu == 3.0
+    # one step below the limit drains it at once by K_I e: 3 - 1 = 2 (uncapped: 6 - 1 = 5)
+    assert pid_lagrangian(-1.0, 0.0, integral, 2.0, gains, integral_max=3.0) == (2.0, 2.0)
+    with pytest.raises(ValueError, match="integral_max must be >= 0"):
+        pid_lagrangian(1.0, 0.0, 0.0, 1.0, gains, integral_max=-1.0)
+
+
 def test_the_pid_multiplier_refuses_a_negative_gain():
     with pytest.raises(ValueError, match="gains must be >= 0"):
         pid_lagrangian(1.0, 1.0, 0.0, 1.0, (1.0, -0.1, 0.0))

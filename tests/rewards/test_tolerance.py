@@ -91,6 +91,31 @@ def test_the_multiplier_by_hand():
         m.observe([math.nan])
 
 
+def test_a_multiplier_with_a_period_steps_once_per_period_of_env_steps():
+    """period 1000: the first call only notes the frame count; then one PID step per multiple
+    of 1000 passed (however many episodes ended), on the window's median; capped integral."""
+    m = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=3, period=1000, integral_max=0.15)
+    assert m.observe([8.0, 8.0], frames=5200) == 1.0 and m.steps == 0  # the start: no step
+    assert m.observe([8.0] * 5, frames=5800) == 1.0 and m.steps == 0  # no multiple passed
+    # 6000 passed: one step on median(8, 8, 8) = 8 N, two doublings: I = 0.2 capped at 0.15
+    assert m.observe([], frames=6000) == pytest.approx(1.0 + 2.0 + 0.15)
+    assert (m.steps, m.episodes, m.integral) == (1, 7, 0.15)
+    # a call that passes two multiples steps twice (here: no episode ended meanwhile)
+    m.observe([], frames=8100)
+    assert m.steps == 3 and m.integral == 0.15
+    # gentle episodes: median(8, 1, 1) = 1 N, e = -1: I = 0.05, mu = max(0, -1 + 0.05) = 0
+    assert m.observe([1.0, 1.0], frames=9000) == 1.0 and m.integral == pytest.approx(0.05)
+    restored = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=3, period=1000, integral_max=0.15)
+    restored.load_state_dict(m.state_dict())
+    assert restored.observe([9.0], frames=10_000) == m.observe([9.0], frames=10_000)
+    with pytest.raises(ValueError, match="pass frames"):
+        m.observe([1.0])
+    # a state saved before the period existed: one step per episode, no frames seen
+    old = {k: v for k, v in m.state_dict().items() if k not in ("steps", "frames")}
+    restored.load_state_dict(old)
+    assert (restored.steps, restored.frames) == (m.episodes, -1)
+
+
 def test_the_actor_maximises_the_weighted_sum_of_its_heads():
     from tests.agent.test_learner import _batch, _learner  # a 2-head D4PG loss and its batch
 
@@ -104,19 +129,25 @@ def test_the_actor_maximises_the_weighted_sum_of_its_heads():
     assert loss.head_weights.tolist() == [1.0, 3.0]
 
 
-def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_path):
+@pytest.mark.parametrize("period", [None, 100])
+def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_path, period):
     """multiplier=pid on the toy hand (episodes of 50 steps, impacts of 2 N per pressing step
     against a tolerance of 0.5 N): the weight rises above 1, the actor's objective carries it,
-    it is logged, and a resumed run restores it before its first update."""
+    it is logged, and a resumed run restores it before its first update. With a period, one PID
+    step per 100 env steps of learning."""
     from gentlerl.training import Trainer
     from tests.helpers import read_scalar, tiny_config, toy_env
 
     gentle = dict(tolerance=0.5, multiplier="pid", reward_delay=100, model_hidden=16)
+    gentle["multiplier_period"] = period
     cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=900, gentleness=gentle)
     trainer = Trainer(cfg, toy_env)
     trainer.run()
     multiplier = trainer.rewards.multiplier
     assert multiplier.episodes >= 10 and multiplier.weight > 1.0
+    if period is not None:  # stepped from the first learning batch on, once per 100 steps
+        first = trainer.cfg.collector.init_random_frames
+        assert multiplier.steps in range((900 - first) // period - 2, (900 - first) // period + 1)
     assert trainer.learner.loss.head_weights.tolist() == [1.0, pytest.approx(multiplier.weight)]
     logged = read_scalar(tmp_path / "run", "train/penalty_weight")
     assert logged and logged[-1][1] == pytest.approx(multiplier.weight)
@@ -136,6 +167,8 @@ def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(
         tiny_config(tmp_path, variant="r", gentleness=dict(tolerance=1.0, multiplier="pid"))
     with pytest.raises(ValueError, match="set gentleness.tolerance"):
         tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier="pid"))
+    with pytest.raises(ValueError, match="multiplier_period=1000 applies to gentleness.multip"):
+        tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier_period=1000))
 
 
 def test_a_single_critic_agent_puts_the_multiplier_on_its_summed_penalty():

@@ -95,3 +95,11 @@ class GentlenessConfig:
         "PID gains [K_P, K_I, K_D] of multiplier=pid (error: doublings above the tolerance)",
         bounds=">= 0",
     )  # fmt: skip
+    multiplier_period: int | None = setting(
+        None,
+        "env steps between the multiplier's PID steps (null: one step per finished episode)",
+        bounds=">= 1",
+    )
+    multiplier_integral_max: float | None = setting(
+        None, "cap of the multiplier's PID integral (anti-windup; null: none)", bounds=">= 0"
+    )

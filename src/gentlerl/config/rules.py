@@ -88,6 +88,13 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
             f"gentleness.multiplier={gentleness.multiplier} steers toward the tolerance: set "
             "gentleness.tolerance (the impact one step may deal, N)"
         )
+    steering = ("multiplier_period", "multiplier_integral_max")
+    if gentleness.multiplier == "none":
+        problems += [
+            f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier=pid only"
+            for name in steering
+            if getattr(gentleness, name) is not None
+        ]
     if len(gentleness.multiplier_gains) != 3:
         problems.append(
             f"gentleness.multiplier_gains={gentleness.multiplier_gains} must be [K_P, K_I, K_D]"

@@ -86,22 +86,27 @@ def pid_lagrangian(
     integral: float,
     previous_cost: float,
     gains: tuple[float, float, float],
+    integral_max: float = math.inf,
 ) -> tuple[float, float]:
     r"""One update of the PID Lagrange multiplier (Stooke, Achiam and Abbeel 2020, Alg. 2).
 
     .. math::
-        e_k = J_k - d, \quad I_k = \max(0, I_{k-1} + K_I e_k), \quad
+        e_k = J_k - d, \quad I_k = \min\bigl(I_{\max}, \max(0, I_{k-1} + K_I e_k)\bigr), \quad
         \mu_k = \max\bigl(0,\; K_P e_k + I_k + K_D \max(0, J_k - J_{k-1})\bigr)
 
     ``cost`` :math:`J_k` and ``limit`` :math:`d` in one unit (here the episodes' max impact's
     :func:`overshoot` of the tolerance, :math:`d = 0`); ``gains`` :math:`(K_P, K_I, K_D)`. The integral only grows
     while the cost is above its limit and is never negative (no wind-up below zero), the
-    derivative term acts only on a rising cost. Returns ``(mu_k, I_k)``.
+    derivative term acts only on a rising cost; ``integral_max`` :math:`I_{\max}` caps the integral
+    (anti-windup: a long overshoot cannot store more than it, so the multiplier falls within
+    :math:`I_{\max} / (K_I |e|)` updates once the cost is below its limit). Returns ``(mu_k, I_k)``.
     """
     kp, ki, kd = gains
     if min(gains) < 0:
         raise ValueError(f"PID gains must be >= 0, got {gains}")
+    if not integral_max >= 0:
+        raise ValueError(f"integral_max must be >= 0, got {integral_max}")
     error = cost - limit
-    integral = max(0.0, integral + ki * error)
+    integral = min(integral_max, max(0.0, integral + ki * error))
     multiplier = max(0.0, kp * error + integral + kd * max(0.0, cost - previous_cost))
     return multiplier, integral

@@ -8,6 +8,7 @@ Both periods count :meth:`IntrinsicRewards.update` calls (one gradient step of e
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -119,7 +120,14 @@ class IntrinsicRewards(Rescoring):
         self.optimizers = {name: step.optimizer for name, step in self._steps.items()}
         #: The penalty's weight steered toward ``settings.tolerance`` (``multiplier=pid``).
         self.multiplier = (
-            ImpactMultiplier(settings.tolerance, settings.multiplier_gains)
+            ImpactMultiplier(
+                settings.tolerance,
+                settings.multiplier_gains,
+                period=settings.multiplier_period,
+                integral_max=settings.multiplier_integral_max
+                if settings.multiplier_integral_max is not None
+                else math.inf,
+            )
             if settings.multiplier == "pid"
             else None
         )

@@ -11,7 +11,10 @@ max impact stays at the tolerance": after each finished episode,
 
 the error is the factor by which the episodes overshoot the tolerance, in doublings (a ratio
 has no unit, so one set of gains serves every env), and an episode at half the tolerance or
-below counts as -1 (no contact at all would otherwise be :math:`-\infty`).
+below counts as -1 (no contact at all would otherwise be :math:`-\infty`). With a ``period``
+the update runs once per ``period`` env steps instead (on the same median), so that short
+episodes do not step the controller faster than long ones, and ``integral_max`` caps its
+integral (the second Method III amendment).
 
 A multi-critic agent (gentlerl's D4PG) puts :math:`w` on the penalty head in its actor's
 objective (``MultiHeadD4PGLoss.set_head_weight``); the critics keep learning the unweighted
@@ -34,16 +37,25 @@ WINDOW = 10
 
 
 class ImpactMultiplier:
-    """The penalty's weight ``1 + mu``; :meth:`observe` each finished episode's max impact.
+    """The penalty's weight ``1 + mu``; :meth:`observe` the finished episodes' max impacts.
 
     Args:
         tolerance: :math:`T`, the impact one step may deal (the unit of the observed impacts).
         gains: :math:`(K_P, K_I, K_D)` on the error in doublings above the tolerance.
         window: :data:`WINDOW` episodes by default.
+        period: ``None``: one PID step per finished episode (the first Method III amendment).
+            ``N``: one PID step per ``N`` env steps, on the window's median (episodes of every
+            length then steer at one rate per frame).
+        integral_max: the cap of the PID integral (anti-windup; default none).
     """
 
     def __init__(
-        self, tolerance: float, gains: tuple[float, float, float], window: int = WINDOW
+        self,
+        tolerance: float,
+        gains: tuple[float, float, float],
+        window: int = WINDOW,
+        period: int | None = None,
+        integral_max: float = math.inf,
     ) -> None:
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
@@ -51,31 +63,53 @@ class ImpactMultiplier:
             raise ValueError(f"gains must be [K_P, K_I, K_D] >= 0, got {gains}")
         if window < 1:
             raise ValueError(f"window must be >= 1 episode, got {window}")
+        if period is not None and period < 1:
+            raise ValueError(f"period must be >= 1 env step (or None), got {period}")
+        if not integral_max >= 0:
+            raise ValueError(f"integral_max must be >= 0, got {integral_max}")
         self.tolerance, self.gains = float(tolerance), tuple(float(g) for g in gains)
+        self.period, self.integral_max = period, float(integral_max)
         self.recent: deque[float] = deque(maxlen=window)
         self.multiplier = self.integral = self.cost = 0.0
-        self.episodes = 0
+        self.episodes = self.steps = 0
+        #: The env steps at the last :meth:`observe` with ``period`` (-1: none yet).
+        self.frames = -1
 
     @property
     def weight(self) -> float:
-        """:math:`w = 1 + \\mu`: the penalty's weight in the objective."""
+        r""":math:`w = 1 + \mu`: the penalty's weight in the objective."""
         return 1.0 + self.multiplier
 
-    def observe(self, max_impacts: Iterable[float]) -> float:
-        """One PID update per finished episode (its max impact, in the tolerance's unit);
-        returns the new :attr:`weight`. A non-finite impact is refused (it would stick)."""
+    def observe(self, max_impacts: Iterable[float], frames: int | None = None) -> float:
+        """Take the finished episodes' max impacts (in the tolerance's unit) and step the PID:
+        per episode, or with ``period`` once per multiple of it that ``frames`` (the run's env
+        steps so far) has passed since the last call. Returns the new :attr:`weight`. A
+        non-finite impact is refused (it would stick)."""
         for impact in max_impacts:
             if not math.isfinite(impact) or impact < 0:
                 raise ValueError(f"an episode's max impact must be finite and >= 0, got {impact}")
             self.recent.append(float(impact))
-            cost = overshoot(statistics.median(self.recent), self.tolerance)
-            previous = self.cost if self.episodes else cost  # no derivative kick at the first
-            self.multiplier, self.integral = pid_lagrangian(
-                cost, 0.0, self.integral, previous, self.gains
-            )
-            self.cost = cost
             self.episodes += 1
+            if self.period is None:
+                self._step()
+        if self.period is not None:
+            if frames is None:
+                raise ValueError(f"period={self.period} steps on env steps: pass frames")
+            crossed = 0 if self.frames < 0 else frames // self.period - self.frames // self.period
+            self.frames = frames
+            for _ in range(crossed if self.recent else 0):
+                self._step()
         return self.weight
+
+    def _step(self) -> None:
+        """One PID update on the window's median max impact."""
+        cost = overshoot(statistics.median(self.recent), self.tolerance)
+        previous = self.cost if self.steps else cost  # no derivative kick at the first
+        self.multiplier, self.integral = pid_lagrangian(
+            cost, 0.0, self.integral, previous, self.gains, self.integral_max
+        )
+        self.cost = cost
+        self.steps += 1
 
     def scalars(self) -> dict[str, float]:
         """What a run logs: the weight, the multiplier's integral and the cost (doublings)."""
@@ -92,6 +126,8 @@ class ImpactMultiplier:
             "integral": self.integral,
             "cost": self.cost,
             "episodes": self.episodes,
+            "steps": self.steps,
+            "frames": self.frames,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -99,3 +135,8 @@ class ImpactMultiplier:
         self.recent.extend(float(x) for x in state["recent"])
         self.multiplier, self.integral = float(state["multiplier"]), float(state["integral"])
         self.cost, self.episodes = float(state["cost"]), int(state["episodes"])
+        # saved before the period existed: one step per episode, no frames seen
+        self.steps, self.frames = (
+            int(state.get("steps", self.episodes)),
+            int(state.get("frames", -1)),
+        )

@@ -161,9 +161,12 @@ class Trainer:
     def _steer(self, episodes: list[dict[str, float]], logger: RunLogger) -> None:
         """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``)."""
         multiplier = self.rewards.multiplier
-        if multiplier is None or not episodes or not self._learning():
+        if multiplier is None or not self._learning():
             return  # the policy's episodes only: not those of the first random actions
-        weight = multiplier.observe(e["max_impact"] for e in episodes)
+        if not episodes and multiplier.period is None:
+            return  # stepped per episode
+        impacts = [e["max_impact"] for e in episodes]
+        weight = multiplier.observe(impacts, frames=self.counters["frames"])
         self.learner.loss.set_head_weight(keys.PENALTY, weight)
         logger.log(
             {f"train/{k}": v for k, v in multiplier.scalars().items()}, self.counters["frames"]
