@@ -135,7 +135,11 @@ def _declared() -> dict[str, Range]:
 
 def test_the_declared_ranges_are_the_ones_validate_checked_before():
     """The bottoms are those of the hand-written lists; the tops those of :data:`SIZE_LIMITS`."""
-    since = {"gentleness.multiplier_gains"}  # declared with its field (>= 0 per gain)
+    since = {  # declared with their fields (>= 0 per gain, >= 1 step, >= 0)
+        "gentleness.multiplier_gains",
+        "gentleness.multiplier_period",
+        "gentleness.multiplier_integral_max",
+    }
     low = {
         n: (b.low, b.low_open)
         for n, b in _declared().items()
