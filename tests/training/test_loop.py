@@ -297,3 +297,28 @@ def test_default_recipe_learns_touch(tmp_path):
     ]
     assert max(learned) >= 0.8
     assert learned[-1] >= 0.8
+
+
+def test_the_ray_cluster_is_joined_after_the_agent_is_built_and_before_anything_is_written(
+    tmp_path, monkeypatch
+):
+    """The set-up's last check: a Ray run whose cluster cannot be joined (here: Ray absent or
+    refused) stops with the cluster's error, after the agent was built, and leaves no run
+    directory behind."""
+    import gentlerl.training.loop as loop
+    from gentlerl.distributed.cluster import ClusterError
+
+    built = []
+    make_agent = loop.make_agent
+    monkeypatch.setattr(loop, "make_agent", lambda *a: built.append(1) or make_agent(*a))
+
+    def refuse(address):
+        assert built, "the cluster is joined once the agent is built"
+        raise ClusterError(f"no Ray cluster found for address={address!r}")
+
+    monkeypatch.setattr(loop, "join_cluster", refuse)
+    run_dir = tmp_path / "ray_run"
+    cfg = tiny_config(run_dir, collector={"kind": "ray", "num_workers": 2, "ray_address": "auto"})
+    with pytest.raises(ClusterError, match="address='auto'"):
+        Trainer(cfg, toy_env)
+    assert built and not run_dir.exists()
