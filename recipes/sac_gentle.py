@@ -4,8 +4,9 @@
 :class:`SACConfig`; ``--help`` lists them). The shape is TorchRL's ``sota-implementations/sac``
 (``make_env``, ``make_sac_agent``, ``make_loss_module``, one loop); the gentleness part is the
 lines marked ``# gentlerl``: the variant's rewards from the env's specs, their sum into the one
-``reward`` SAC reads, the replay buffer scoring r^sp again at sampling, and one model update
-per SAC update. ``variant=r`` runs plain SAC on the task reward (the components are still
+``reward`` SAC reads, the replay buffer scoring r^sp again at sampling, one model update
+per SAC update, and with ``multiplier=pid`` the penalty's weight in the sum steered toward
+``tolerance`` by the collected episodes (Method III). ``variant=r`` runs plain SAC on the task reward (the components are still
 logged, ``r`` sums the task reward alone).
 
 Writes ``run_dir/actor.pt`` (the final actor's state dict) and ``run_dir/final_eval.json``: the final actor's deterministic episodes on a held-out seed,
@@ -33,7 +34,7 @@ from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss, SoftUpdate
 from tqdm import tqdm
 
-from gentlerl.config import GentlenessConfig, Range
+from gentlerl.config import GentlenessConfig, Range, check_group
 from gentlerl.envs import TASKS, make_env
 from gentlerl.rewards import VARIANTS, IntrinsicRewards, SumRewards
 from gentlerl.training import EVAL_SEED_OFFSET, evaluate_actor
@@ -63,6 +64,12 @@ class SACConfig:
     alpha_init: float = 1.0
     lam_prime: list[float] = field(default_factory=lambda: [2.0, 2.0])  # fragile: [2, 1.5]
     reward_delay: int = 1_000  # model updates, as the D4PG grid's cpu scale
+    # Method III (docs/GENTLEBENCH.md): the impact one step may deal (N), and the penalty's
+    # weight steered toward it by a PID multiplier (pid; its period in env steps, its cap)
+    tolerance: float | None = None
+    multiplier: str = "none"
+    multiplier_period: int | None = None
+    multiplier_integral_max: float | None = None
     eval_every_frames: int = 5_000
     eval_episodes: int = 5
     final_eval_episodes: int = 20
@@ -93,8 +100,12 @@ def check(cfg: SACConfig) -> list[str]:
         problems.append(f"variant={cfg.variant!r} is not one of {sorted(VARIANTS)}")
     if not 1 <= len(cfg.hidden) <= 8 or not all(1 <= h <= 4096 for h in cfg.hidden):
         problems.append(f"hidden={cfg.hidden} must list 1 to 8 layer sizes in [1, 4096]")
-    if len(cfg.lam_prime) != 2 or not (cfg.lam_prime[0] > 0 and cfg.lam_prime[1] >= 0):
-        problems.append(f"lam_prime={cfg.lam_prime} must be [lambda_1 > 0, lambda_2 >= 0]")
+    try:  # lam_prime, tolerance and the multiplier: gentlerl's own checks
+        check_group(gentleness(cfg), "gentleness")
+    except ValueError as err:  # named as this recipe names them
+        problems.append(str(err).split(": ", 1)[1].replace("gentleness.", ""))
+    if cfg.multiplier != "none" and cfg.variant == "r":
+        problems.append(f"multiplier={cfg.multiplier} weighs the penalty, which variant=r lacks")
     if cfg.batch_size > cfg.buffer_size:
         problems.append(f"batch_size={cfg.batch_size} must be <= buffer_size={cfg.buffer_size}")
     return problems
@@ -135,11 +146,18 @@ def make_loss_module(model: nn.ModuleList, cfg: SACConfig) -> tuple[SACLoss, Sof
     return loss, SoftUpdate(loss, eps=cfg.polyak)
 
 
+def gentleness(cfg: SACConfig) -> GentlenessConfig:
+    """The recipe's gentleness settings as gentlerl's group."""
+    return GentlenessConfig(  # gentlerl
+        lam_prime=tuple(cfg.lam_prime), reward_delay=cfg.reward_delay, tolerance=cfg.tolerance,
+        multiplier=cfg.multiplier, multiplier_period=cfg.multiplier_period,
+        multiplier_integral_max=cfg.multiplier_integral_max,
+    )  # fmt: skip
+
+
 def make_env_and_rewards(cfg: SACConfig) -> tuple[TransformedEnv, IntrinsicRewards, SumRewards]:
     hand = make_env(cfg.task, seed=cfg.seed)
-    settings = GentlenessConfig(
-        lam_prime=tuple(cfg.lam_prime), reward_delay=cfg.reward_delay
-    )  # gentlerl
+    settings = gentleness(cfg)
     variant = "r+rf" if cfg.variant == "r" else cfg.variant  # gentlerl: r logs the penalty
     rewards = IntrinsicRewards.from_env(hand, variant, settings, seed=cfg.seed)  # gentlerl
     summed = ["reward"] if cfg.variant == "r" else rewards.reward_keys  # gentlerl
@@ -178,6 +196,9 @@ def train(cfg: SACConfig) -> dict[str, float]:
         frames += batch.numel()
         rb.extend(batch.exclude("touch_grid", ("next", "touch_grid")).reshape(-1))
         rewards.extend(batch)  # gentlerl: the models' 1-step buffer
+        if rewards.multiplier is not None and frames > cfg.init_random_frames:  # gentlerl
+            weight = rewards.multiplier.observe_batch(batch, frames)  # gentlerl: the policy's
+            reward_sum.set_weight("penalty", weight)  # gentlerl: episodes steer the penalty
         if frames > cfg.init_random_frames:
             credit += cfg.utd_ratio * batch.numel()
             while credit >= 1:
@@ -206,6 +227,7 @@ def train(cfg: SACConfig) -> dict[str, float]:
         "updates": rewards.num_updates,
         "frames": frames,
         "final_alpha": loss.log_alpha.exp().item(),  # the entropy temperature it ended at
+        "penalty_weight": rewards.multiplier.weight if rewards.multiplier else 1.0,  # gentlerl
         **evaluate_actor(  # gentlerl: held-out episodes, as gentlerl evaluate
             lambda: make_env(cfg.task), model[0], cfg.final_eval_episodes, FINAL_EVAL_SEED
         ),

@@ -40,6 +40,24 @@ def test_a_tiny_sac_run_updates_the_models_with_the_learner_and_writes_its_evalu
     assert rows[0].startswith("frames,") and [r.split(",")[0] for r in rows[1:]] == ["400", "800"]
 
 
+def test_the_sac_recipe_steers_the_summed_penalty_toward_the_tolerance(tmp_path):
+    """multiplier=pid: the collected episodes (impacts far above a 0.05 N tolerance) raise the
+    penalty's weight in the one reward SAC reads, once per 100 env steps after the random ones."""
+    sac = load("sac_gentle")
+    cfg = sac.parse(
+        [
+            "total_frames=800", "init_random_frames=200", "batch_size=32", "hidden=[16,16]",
+            "reward_delay=10", "eval_every_frames=800", "eval_episodes=1",
+            "final_eval_episodes=1", f"run_dir={tmp_path}", "variant=r+rf", "tolerance=0.05",
+            "multiplier=pid", "multiplier_period=100", "multiplier_integral_max=2",
+        ]
+    )  # fmt: skip
+    result = sac.train(cfg)
+    assert 1.0 < result["penalty_weight"]
+    written = json.loads((tmp_path / "final_eval.json").read_text())
+    assert written["penalty_weight"] == result["penalty_weight"]
+
+
 def test_the_sac_recipe_refuses_a_bad_setting_in_one_line(capsys):
     sac = load("sac_gentle")
     with pytest.raises(SystemExit, match="Key 'bogus' not in 'SACConfig'"):
@@ -89,6 +107,10 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
         ("gamma=2", r"gamma=2.0 must be in \(0, 1\]"),
         ("reward_delay=-1", "reward_delay=-1 must be >= 0"),
         ("num_threads=0", r"num_threads=0 must be in \[1, 256\]"),
+        ("multiplier=pid", "multiplier=pid steers toward the tolerance: set tolerance"),
+        ("tolerance=0", r"tolerance=0.0 must be > 0"),
+        ("lam_prime=[0,2]", r"lam_prime=\(0.0, 2.0\) must be \[lambda_1 > 0"),
+        ("multiplier_period=0", r"multiplier_period=0 must be >= 1"),
     ],
 )
 def test_the_sac_recipe_refuses_bad_values_before_any_folder(

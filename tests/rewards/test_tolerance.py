@@ -116,6 +116,29 @@ def test_a_multiplier_with_a_period_steps_once_per_period_of_env_steps():
     assert (restored.steps, restored.frames) == (m.episodes, -1)
 
 
+def test_a_loop_of_ones_own_steps_the_multiplier_from_its_collector_batches():
+    """observe_batch: each episode's max impact over sites and steps, told by the collector's
+    trajectory ids; an episode running into the next batch carries its max."""
+    from tensordict import TensorDict
+
+    def batch(traj, done, impacts):  # impacts [T, 2 sites]
+        n = len(traj)
+        nxt = {keys.IMPACT: torch.tensor(impacts), keys.DONE: torch.tensor(done).view(n, 1)}
+        return TensorDict(
+            {"collector": {"traj_ids": torch.tensor(traj)}, "next": nxt}, batch_size=[n]
+        )
+
+    m = ImpactMultiplier(2.0, (1.0, 0.0, 0.0), window=1)
+    first = batch([0, 0, 0, 1, 1], [False, False, True, False, False],
+                  [[1.0, 6.0], [0.0, 2.0], [1.0, 0.0], [8.0, 0.0], [0.0, 1.0]])  # fmt: skip
+    # episode 0 ends at 6 N (log2(3) doublings above T); episode 1 runs on at 8 N so far
+    assert m.observe_batch(first) == pytest.approx(1.0 + math.log2(3.0))
+    assert m.episodes == 1
+    second = batch([1, 2], [True, False], [[0.5, 0.5], [3.0, 3.0]])
+    # episode 1 ends: its max over both batches is 8 N, two doublings
+    assert m.observe_batch(second) == pytest.approx(3.0) and m.episodes == 2
+
+
 def test_the_actor_maximises_the_weighted_sum_of_its_heads():
     from tests.agent.test_learner import _batch, _learner  # a 2-head D4PG loss and its batch
 

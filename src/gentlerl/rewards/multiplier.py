@@ -19,7 +19,8 @@ integral (the second Method III amendment).
 A multi-critic agent (gentlerl's D4PG) puts :math:`w` on the penalty head in its actor's
 objective (``MultiHeadD4PGLoss.set_head_weight``); the critics keep learning the unweighted
 components, so changing :math:`w` needs no relabelled buffer. A single-critic agent puts it on the
-penalty's weight in ``SumRewards`` (rescored at sampling).
+penalty's weight in ``SumRewards`` (rescored at sampling), and any loop steps it from its
+collector's batches (:meth:`ImpactMultiplier.observe_batch`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ from collections import deque
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+import torch
+from tensordict import TensorDictBase
+
+from gentlerl import keys
 from gentlerl.functional import overshoot, pid_lagrangian
 
 #: Finished episodes whose median max impact is the constraint's cost.
@@ -74,6 +79,8 @@ class ImpactMultiplier:
         self.episodes = self.steps = 0
         #: The env steps at the last :meth:`observe` with ``period`` (-1: none yet).
         self.frames = -1
+        #: :meth:`observe_batch`'s episodes still running: trajectory id -> max impact so far.
+        self._open: dict[int, float] = {}
 
     @property
     def weight(self) -> float:
@@ -100,6 +107,25 @@ class ImpactMultiplier:
             for _ in range(crossed if self.recent else 0):
                 self._step()
         return self.weight
+
+    def observe_batch(self, batch: TensorDictBase, frames: int | None = None) -> float:
+        """:meth:`observe` a batch of a TorchRL collector (any loop's, e.g. SAC's): the max
+        impact (``("next", "impact")``, over sites and steps) of each episode that ends in it,
+        an episode told by the collector's ``("collector", "traj_ids")``; an episode that
+        continues into the next batch carries its max there (not checkpointed)."""
+        flat = batch.reshape(-1)
+        traj = flat.get(("collector", "traj_ids")).reshape(-1)
+        impact = flat.get(("next", keys.IMPACT)).reshape(len(flat), -1).amax(-1)
+        done = flat.get(("next", keys.DONE)).reshape(-1)
+        finished = []
+        for tid in torch.unique(traj).tolist():
+            mask = traj == tid
+            peak = max(self._open.pop(tid, 0.0), impact[mask].max().item())
+            if done[mask].any():
+                finished.append(peak)
+            else:
+                self._open[tid] = peak
+        return self.observe(finished, frames)
 
     def _step(self) -> None:
         """One PID update on the window's median max impact."""
