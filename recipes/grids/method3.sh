@@ -9,7 +9,8 @@
 #   bash recipes/grids/method3.sh [--workers N] [--out DIR] [--episodes N]
 #                                 [--tasks finger_turn_easy,touch,fragile] [--kinds ,_steered]
 # --kinds picks the sweep files per task (method3_<task><kind>.yaml): "" the unsteered pair,
-# _steered the first amendment's steered pair, _paced the second amendment's (touch, fragile).
+# _steered the first amendment's steered pair, _paced the second amendment's (touch, fragile),
+# _normonly and _pidonly the third amendment's (each mechanism alone on r+rf+rsp).
 # Resumable: finished runs (DONE) are skipped; evaluations are redone.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -56,7 +56,7 @@ def test_the_table_labels_the_four_rows_and_prints_the_tests(tmp_path, capsys):
     for seed in range(2):
         base = {"task": "touch", "seed": seed, "env": {"name": None, "force_scale": 1.0}}
         plain = {**base, "gentleness": {"multiplier": "none"}}
-        steered = {**base, "gentleness": {"multiplier": "pid"}}
+        steered = {**base, "gentleness": {"multiplier": "pid", "curiosity_norm": True}}
         _run(tmp_path, f"r{seed}", {**plain, "variant": "r"}, [(1, 6.0, 1.0), (1, 8.0, 1.0)])
         _run(tmp_path, f"n{seed}", {**steered, "variant": "r+rf+rsp"},
              [(1, 2.0, 1.0), (seed, 3.0, 1.0)], rsp=[(0, 9.0), (20_000, 3.0), (30_000, 1.0)])  # fmt: skip
@@ -70,6 +70,26 @@ def test_the_table_labels_the_four_rows_and_prints_the_tests(tmp_path, capsys):
     assert "| touch | `baseline` | 0.00 ± 0.00 (0.00 / 0.00) |" in out
     assert "- **H1 touch**: does not hold (success 0.75 at 2.50 N)" in out
     assert "- **B touch**: not at equal impact" in out
+
+
+def test_each_mechanism_alone_gets_its_own_row_and_hand_tests():
+    from gentlerl.analysis.criteria import method3_verdicts
+    from gentlerl.analysis.method3 import method3_label
+    from gentlerl.analysis.runs import Run
+
+    def label(variant, **gentleness):
+        return method3_label(Run(path=None, config={"variant": variant, "gentleness": gentleness}))
+
+    assert label("r+rf+rsp", multiplier="pid", curiosity_norm=True) == "new"
+    assert label("r+rf+rsp", multiplier="pid") == "pid alone"
+    assert label("r+rf+rsp", curiosity_norm=True) == "norm alone"
+    assert label("r+rf+rsp") == "r+rf+rsp" and label("r+rf", multiplier="pid") == "baseline"
+    row = {"score": 1.0, "median_impact": 2.5}
+    verdicts = method3_verdicts({"touch": {"pid alone": row}, "fragile": {"norm alone": row}})
+    assert verdicts == {
+        "H1 touch, pid alone": "holds (success 1.00 at 2.50 N)",
+        "H2 fragile, norm alone": "holds (1.00)",
+    }
 
 
 def test_runs_that_differ_in_method_iiis_switches_are_not_pooled():

@@ -26,11 +26,16 @@ LAST_FRAMES = 10_000
 
 
 def method3_label(run: Run) -> str:
-    """``r``, ``r+rf+rsp`` (the paper under the tolerance rule), ``new`` or ``baseline``."""
+    """``r``, ``r+rf+rsp`` (the paper under the tolerance rule), ``new`` or ``baseline``; or the
+    paper's ``r+rf+rsp`` with one of new's two mechanisms: ``norm alone`` (the normalised
+    curiosity), ``pid alone`` (the multiplier)."""
     steered = run.setting("gentleness", "multiplier", "none") != "none"
-    if not steered:
-        return run.variant
-    return "new" if "rsp" in run.variant else "baseline"
+    if "rsp" not in run.variant:
+        return "baseline" if steered else run.variant
+    norm = bool(run.setting("gentleness", "curiosity_norm", False))
+    return {(True, True): "new", (True, False): "pid alone", (False, True): "norm alone"}.get(
+        (steered, norm), run.variant
+    )
 
 
 def _tail_mean(run: Run, name: str) -> float:
