@@ -8,7 +8,6 @@ Both periods count :meth:`IntrinsicRewards.update` calls (one gradient step of e
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -124,9 +123,7 @@ class IntrinsicRewards(Rescoring):
                 settings.tolerance,
                 settings.multiplier_gains,
                 period=settings.multiplier_period,
-                integral_max=settings.multiplier_integral_max
-                if settings.multiplier_integral_max is not None
-                else math.inf,
+                integral_max=settings.multiplier_integral_max,
             )
             if settings.multiplier == "pid"
             else None

@@ -51,7 +51,7 @@ class ImpactMultiplier:
         period: ``None``: one PID step per finished episode (the first Method III amendment).
             ``N``: one PID step per ``N`` env steps, on the window's median (episodes of every
             length then steer at one rate per frame).
-        integral_max: the cap of the PID integral (anti-windup; default none).
+        integral_max: the cap of the PID integral (anti-windup; ``None``: no cap).
     """
 
     def __init__(
@@ -60,7 +60,7 @@ class ImpactMultiplier:
         gains: tuple[float, float, float],
         window: int = WINDOW,
         period: int | None = None,
-        integral_max: float = math.inf,
+        integral_max: float | None = None,
     ) -> None:
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
@@ -70,8 +70,9 @@ class ImpactMultiplier:
             raise ValueError(f"window must be >= 1 episode, got {window}")
         if period is not None and period < 1:
             raise ValueError(f"period must be >= 1 env step (or None), got {period}")
+        integral_max = math.inf if integral_max is None else integral_max
         if not integral_max >= 0:
-            raise ValueError(f"integral_max must be >= 0, got {integral_max}")
+            raise ValueError(f"integral_max must be >= 0 (or None), got {integral_max}")
         self.tolerance, self.gains = float(tolerance), tuple(float(g) for g in gains)
         self.period, self.integral_max = period, float(integral_max)
         self.recent: deque[float] = deque(maxlen=window)
