@@ -10,7 +10,9 @@
 #                                 [--tasks finger_turn_easy,touch,fragile] [--kinds ,_steered]
 # --kinds picks the sweep files per task (method3_<task><kind>.yaml): "" the unsteered pair,
 # _steered the first amendment's steered pair, _paced the second amendment's (touch, fragile),
-# _normonly and _pidonly the third amendment's (each mechanism alone on r+rf+rsp).
+# _normonly and _pidonly the third amendment's (each mechanism alone on r+rf+rsp), _deployed the
+# fourth's pair (a plain Lagrangian on the deployed policy's episodes), _deployedw1 its
+# attribution row (the same with the paper's weight as floor; touch, fragile).
 # Resumable: finished runs (DONE) are skipped; evaluations are redone.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

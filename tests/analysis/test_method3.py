@@ -82,6 +82,10 @@ def test_each_mechanism_alone_gets_its_own_row_and_hand_tests():
 
     assert label("r+rf+rsp", multiplier="pid", curiosity_norm=True) == "new"
     assert label("r+rf+rsp", multiplier="pid") == "pid alone"
+    # the fourth amendment's new method: the multiplier on the deployed policy's episodes
+    deployed = dict(multiplier="pid", multiplier_episodes=3)
+    assert label("r+rf+rsp", multiplier_base=0.0, **deployed) == "new"
+    assert label("r+rf+rsp", **deployed) == "new, w0=1"  # the paper's weight as its floor
     assert label("r+rf+rsp", curiosity_norm=True) == "norm alone"
     assert label("r+rf+rsp") == "r+rf+rsp" and label("r+rf", multiplier="pid") == "baseline"
     row = {"score": 1.0, "median_impact": 2.5}

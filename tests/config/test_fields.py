@@ -123,7 +123,7 @@ SIZE_LIMITS = {
     "network.actor_hidden": 4096, "network.critic_hidden": 4096, "network.num_atoms": 1001,
     "gentleness.ensemble_size": 32, "gentleness.model_hidden": 2048,
     "gentleness.model_batch_size": 65536, "gentleness.model_buffer_size": 10**7,
-    "logging.eval_episodes": 256,
+    "logging.eval_episodes": 256, "gentleness.multiplier_episodes": 256,
 }  # fmt: skip
 #: Ranges that end at a number that is not a size (a share, a discount).
 _NOT_SIZES = ("replay.alpha", "replay.beta", "learner.gamma")
@@ -135,10 +135,12 @@ def _declared() -> dict[str, Range]:
 
 def test_the_declared_ranges_are_the_ones_validate_checked_before():
     """The bottoms are those of the hand-written lists; the tops those of :data:`SIZE_LIMITS`."""
-    since = {  # declared with their fields (>= 0 per gain, >= 1 step, >= 0)
+    since = {  # declared with their fields (>= 0 per gain, >= 1 step, >= 0, >= 0, [0, 256])
         "gentleness.multiplier_gains",
         "gentleness.multiplier_period",
         "gentleness.multiplier_integral_max",
+        "gentleness.multiplier_base",
+        "gentleness.multiplier_episodes",
     }
     low = {
         n: (b.low, b.low_open)

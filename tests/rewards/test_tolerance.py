@@ -116,6 +116,24 @@ def test_a_multiplier_with_a_period_steps_once_per_period_of_env_steps():
     assert (restored.steps, restored.frames) == (m.episodes, -1)
 
 
+def test_a_plain_lagrangian_starts_at_no_penalty_and_says_when_it_is_due():
+    """base 0: w = mu, so 0 until a PID step sees the cost above its limit; due(frames) says
+    whether observe(frames) would step (a multiple of the period passed since the last call)."""
+    m = ImpactMultiplier(2.0, (1.0, 0.1, 0.0), window=2, period=1000, base=0.0)
+    assert m.weight == 0.0 and not m.due(5200)  # no frames seen yet: the start only notes them
+    m.observe([], frames=5200)
+    assert not m.due(5999) and m.due(6000)
+    # median(6, 1) = 3.5 N: e = log2(1.75), I = 0.1 e, w = 0 + e + I
+    e = math.log2(1.75)
+    assert m.observe([6.0, 1.0], frames=6000) == pytest.approx(1.1 * e)
+    # median(1, 1) = 1 N, the floor: e = -1, mu = max(0, -1 + I) = 0: no penalty at all
+    assert m.observe([1.0, 1.0], frames=7000) == 0.0
+    with pytest.raises(ValueError, match="due\\(\\) needs a period"):
+        ImpactMultiplier(2.0, (1.0, 0.1, 0.0)).due(1000)
+    with pytest.raises(ValueError, match="base must be a finite weight >= 0, got -1.0"):
+        ImpactMultiplier(2.0, (1.0, 0.1, 0.0), base=-1.0)
+
+
 def test_a_loop_of_ones_own_steps_the_multiplier_from_its_collector_batches():
     """observe_batch: each episode's max impact over sites and steps, told by the collector's
     trajectory ids; an episode running into the next batch carries its max."""
@@ -183,6 +201,26 @@ def test_a_run_steers_the_penalty_head_logs_the_multiplier_and_resumes_it(tmp_pa
     assert resumed.learner.loss.head_weights[1].item() == pytest.approx(multiplier.weight)
 
 
+def test_a_run_can_steer_on_the_deployed_policys_noise_free_episodes(tmp_path):
+    """multiplier_episodes=2, period 100, base 0: the penalty head's weight starts at 0 (w_0),
+    and each PID step reads two noise-free episodes of the current actor, not the collection's
+    (about 16 collection episodes of 50 steps end in this run's learning frames)."""
+    from gentlerl.training import Trainer
+    from tests.helpers import tiny_config, toy_env
+
+    gentle = dict(tolerance=0.5, multiplier="pid", reward_delay=100, model_hidden=16)
+    gentle.update(multiplier_period=100, multiplier_episodes=2, multiplier_base=0.0)
+    cfg = tiny_config(tmp_path / "run", variant="r+rf", total_frames=900, gentleness=gentle)
+    trainer = Trainer(cfg, toy_env)
+    assert trainer.learner.loss.head_weights.tolist() == [1.0, 0.0]
+    trainer.run()
+    multiplier = trainer.rewards.multiplier
+    first = trainer.cfg.collector.init_random_frames
+    assert multiplier.steps in range((900 - first) // 100 - 2, (900 - first) // 100 + 1)
+    assert multiplier.steps >= 3 and multiplier.episodes == 2 * multiplier.steps
+    assert trainer.learner.loss.head_weights[1].item() == pytest.approx(multiplier.weight)
+
+
 def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(tmp_path):
     from tests.helpers import tiny_config
 
@@ -192,6 +230,11 @@ def test_a_multiplier_without_a_penalty_head_or_a_tolerance_is_refused_up_front(
         tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier="pid"))
     with pytest.raises(ValueError, match="multiplier_period=1000 applies to gentleness.multip"):
         tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier_period=1000))
+    with pytest.raises(ValueError, match="multiplier_base=0.0 applies to gentleness.multiplier"):
+        tiny_config(tmp_path, variant="r+rf", gentleness=dict(multiplier_base=0.0))
+    steered = dict(tolerance=1.0, multiplier="pid", multiplier_episodes=3)
+    with pytest.raises(ValueError, match="multiplier_episodes=3 runs at each PID step: set gen"):
+        tiny_config(tmp_path, variant="r+rf", gentleness=steered)
 
 
 def test_a_single_critic_agent_puts_the_multiplier_on_its_summed_penalty():

@@ -116,6 +116,8 @@ class AgentBuilder:
         )
         loss.make_value_estimator(gamma=learner.gamma)
         loss.set_keys(terminated=keys.NSTEP_TERMINATED)
+        if self.rewards.multiplier is not None:  # w_0 until the first PID step
+            loss.set_head_weight(keys.PENALTY, self.rewards.multiplier.weight)
         return Learner(
             loss.to(learner.device),
             lr_actor=learner.lr_actor,

@@ -243,7 +243,7 @@ def sac_verdict(task: str, r: Mapping[str, float], rsp: Mapping[str, float]) -> 
 
 
 #: The Method III grid's rows per task, in table order (:mod:`gentlerl.analysis.method3`).
-METHOD3_VARIANTS = ("r", "r+rf+rsp", "new", "baseline", "norm alone", "pid alone")
+METHOD3_VARIANTS = ("r", "r+rf+rsp", "new", "baseline", "norm alone", "pid alone", "new, w0=1")
 
 
 def _test(holds: bool, numbers: str) -> str:
@@ -266,14 +266,14 @@ def method3_verdicts(rows: Mapping[str, Mapping[str, Mapping[str, float]]]) -> d
     missing is absent.
 
     H1: touch, new's success >= 0.95 at a median max impact <= 3 N. H2: fragile, new's success
-    >= 0.8 (both also for each mechanism alone, the third amendment). F1: finger-turn_easy, new's
-    median return >= 0.8 x ``r``'s at <= 0.5 x its median max impact. B:
-    :func:`method3_equal_impact` per task. N: new's r^sp per contact step on finger-turn_easy
-    within 2x of its value on touch.
+    >= 0.8 (both also per mechanism alone, the third amendment; the fourth's ``new, w0=1``).
+    F1: finger-turn_easy, new's median return >= 0.8 x ``r``'s at <= 0.5 x its median max
+    impact. B: :func:`method3_equal_impact` per task. N: new's r^sp per contact step on
+    finger-turn_easy within 2x of its value on touch.
     """
     new = {task: labels["new"] for task, labels in rows.items() if "new" in labels}
     out = {}
-    for label in ("new", "norm alone", "pid alone"):
+    for label in ("new", "norm alone", "pid alone", "new, w0=1"):
         t, f = rows.get("touch", {}).get(label), rows.get("fragile", {}).get(label)
         named = "" if label == "new" else f", {label}"
         if t:

@@ -28,10 +28,15 @@ LAST_FRAMES = 10_000
 def method3_label(run: Run) -> str:
     """``r``, ``r+rf+rsp`` (the paper under the tolerance rule), ``new`` or ``baseline``; or the
     paper's ``r+rf+rsp`` with one of new's two mechanisms: ``norm alone`` (the normalised
-    curiosity), ``pid alone`` (the multiplier)."""
+    curiosity), ``pid alone`` (the multiplier). A multiplier on the deployed policy's episodes
+    (``multiplier_episodes``, the fourth amendment) on ``r+rf+rsp`` is that amendment's ``new``
+    (a plain Lagrangian, ``multiplier_base`` 0), or ``new, w0=1`` with the paper's weight as floor."""
     steered = run.setting("gentleness", "multiplier", "none") != "none"
     if "rsp" not in run.variant:
         return "baseline" if steered else run.variant
+    if steered and run.setting("gentleness", "multiplier_episodes", 0):  # the fourth amendment
+        base = float(run.setting("gentleness", "multiplier_base", 1.0))
+        return "new" if base == 0 else f"new, w0={base:g}"
     norm = bool(run.setting("gentleness", "curiosity_norm", False))
     return {(True, True): "new", (True, False): "pid alone", (False, True): "norm alone"}.get(
         (steered, norm), run.variant

@@ -57,13 +57,15 @@ class Run:
 
     @property
     def label(self) -> str:
-        """The variant, its lambda'_2, and Method III's switches where on (``+ norm``, ``+ pid``):
-        runs that differ in them are not pooled."""
+        """The variant, its lambda'_2, and Method III's switches where on (``+ norm``, ``+ pid``,
+        ``on the deployed policy``): runs that differ in them are not pooled."""
         label = self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
         if "rsp" in self.variant and self.setting("gentleness", "curiosity_norm", False):
             label += " + norm"
         if self.setting("gentleness", "multiplier", "none") != "none":
             label += f" + {self.setting('gentleness', 'multiplier')}"
+            if self.setting("gentleness", "multiplier_episodes", 0):
+                label += " on the deployed policy"
         return label
 
     @property

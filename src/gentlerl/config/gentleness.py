@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gentlerl.config.fields import setting
-from gentlerl.config.limits import MAX_BATCH, MAX_TRANSITIONS, MAX_WIDTH
+from gentlerl.config.limits import MAX_BATCH, MAX_HANDS, MAX_TRANSITIONS, MAX_WIDTH
 
 #: gentleness.multiplier: the penalty head's weight fixed at 1 (the paper), or steered by a PID
 #: Lagrange multiplier toward the tolerance.
@@ -102,4 +102,16 @@ class GentlenessConfig:
     )
     multiplier_integral_max: float | None = setting(
         None, "cap of the multiplier's PID integral (anti-windup; null: none)", bounds=">= 0"
+    )
+    multiplier_base: float = setting(
+        1.0,
+        "w = multiplier_base + mu: 1 keeps at least the paper's weight, 0 is a plain Lagrangian "
+        "(no penalty while the impacts stay within the tolerance)",
+        bounds=">= 0",
+    )
+    multiplier_episodes: int = setting(
+        0,
+        "noise-free episodes of the current actor run at each PID step, whose max impacts are "
+        "the cost (the deployed policy; needs multiplier_period; 0: the collection episodes)",
+        bounds=f"[0, {MAX_HANDS}]",
     )

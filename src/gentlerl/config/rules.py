@@ -88,13 +88,19 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
             f"gentleness.multiplier={gentleness.multiplier} steers toward the tolerance: set "
             "gentleness.tolerance (the impact one step may deal, N)"
         )
-    steering = ("multiplier_period", "multiplier_integral_max")
+    steering = {"multiplier_period": None, "multiplier_integral_max": None}
+    steering.update(multiplier_base=1.0, multiplier_episodes=0)  # name: its value when unused
     if gentleness.multiplier == "none":
         problems += [
             f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier=pid only"
-            for name in steering
-            if getattr(gentleness, name) is not None
+            for name, unused in steering.items()
+            if getattr(gentleness, name) != unused
         ]
+    elif gentleness.multiplier_episodes and gentleness.multiplier_period is None:
+        problems.append(
+            f"gentleness.multiplier_episodes={gentleness.multiplier_episodes} runs at each PID "
+            "step: set gentleness.multiplier_period (env steps between them)"
+        )
     if len(gentleness.multiplier_gains) != 3:
         problems.append(
             f"gentleness.multiplier_gains={gentleness.multiplier_gains} must be [K_P, K_I, K_D]"

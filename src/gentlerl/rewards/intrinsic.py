@@ -124,6 +124,7 @@ class IntrinsicRewards(Rescoring):
                 settings.multiplier_gains,
                 period=settings.multiplier_period,
                 integral_max=settings.multiplier_integral_max,
+                base=settings.multiplier_base,
             )
             if settings.multiplier == "pid"
             else None

@@ -2,7 +2,8 @@ r"""``ImpactMultiplier``: the impact penalty's weight, steered toward a stated t
 
 The paper fixes the trade-off between the task and the impact penalty by hand (:math:`\lambda'`,
 which it says "may be adjusted dynamically during learning"). Here the penalty's weight in the
-agent's objective is :math:`w = 1 + \mu`, where :math:`\mu \ge 0` is a PID Lagrange multiplier
+agent's objective is :math:`w = w_0 + \mu` (:math:`w_0 = 1` keeps at least the paper's weight,
+:math:`w_0 = 0` is a plain Lagrangian), where :math:`\mu \ge 0` is a PID Lagrange multiplier
 (Stooke et al. 2020; :func:`~gentlerl.functional.pid_lagrangian`) on the constraint "the episodes'
 max impact stays at the tolerance": after each finished episode,
 
@@ -14,7 +15,9 @@ has no unit, so one set of gains serves every env), and an episode at half the t
 below counts as -1 (no contact at all would otherwise be :math:`-\infty`). With a ``period``
 the update runs once per ``period`` env steps instead (on the same median), so that short
 episodes do not step the controller faster than long ones, and ``integral_max`` caps its
-integral (the second Method III amendment).
+integral (the second Method III amendment). The loop may also feed it the max impacts of a few
+noise-free episodes of the current actor at each step (``gentleness.multiplier_episodes``: the
+deployed policy's cost, not the exploring one's; the fourth amendment).
 
 A multi-critic agent (gentlerl's D4PG) puts :math:`w` on the penalty head in its actor's
 objective (``MultiHeadD4PGLoss.set_head_weight``); the critics keep learning the unweighted
@@ -42,7 +45,7 @@ WINDOW = 10
 
 
 class ImpactMultiplier:
-    """The penalty's weight ``1 + mu``; :meth:`observe` the finished episodes' max impacts.
+    r"""The penalty's weight ``base + mu``; :meth:`observe` the finished episodes' max impacts.
 
     Args:
         tolerance: :math:`T`, the impact one step may deal (the unit of the observed impacts).
@@ -52,6 +55,8 @@ class ImpactMultiplier:
             ``N``: one PID step per ``N`` env steps, on the window's median (episodes of every
             length then steer at one rate per frame).
         integral_max: the cap of the PID integral (anti-windup; ``None``: no cap).
+        base: :math:`w_0`, the weight at :math:`\mu = 0` (1: the paper's weight is the floor;
+            0: a plain Lagrangian, no penalty while the cost is below its limit).
     """
 
     def __init__(
@@ -61,6 +66,7 @@ class ImpactMultiplier:
         window: int = WINDOW,
         period: int | None = None,
         integral_max: float | None = None,
+        base: float = 1.0,
     ) -> None:
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
@@ -70,11 +76,13 @@ class ImpactMultiplier:
             raise ValueError(f"window must be >= 1 episode, got {window}")
         if period is not None and period < 1:
             raise ValueError(f"period must be >= 1 env step (or None), got {period}")
+        if not (math.isfinite(base) and base >= 0):
+            raise ValueError(f"base must be a finite weight >= 0, got {base!r}")
         integral_max = math.inf if integral_max is None else integral_max
         if not integral_max >= 0:
             raise ValueError(f"integral_max must be >= 0 (or None), got {integral_max}")
         self.tolerance, self.gains = float(tolerance), tuple(float(g) for g in gains)
-        self.period, self.integral_max = period, float(integral_max)
+        self.period, self.integral_max, self.base = period, float(integral_max), float(base)
         self.recent: deque[float] = deque(maxlen=window)
         self.multiplier = self.integral = self.cost = 0.0
         self.episodes = self.steps = 0
@@ -85,8 +93,8 @@ class ImpactMultiplier:
 
     @property
     def weight(self) -> float:
-        r""":math:`w = 1 + \mu`: the penalty's weight in the objective."""
-        return 1.0 + self.multiplier
+        r""":math:`w = w_0 + \mu`: the penalty's weight in the objective."""
+        return self.base + self.multiplier
 
     def observe(self, max_impacts: Iterable[float], frames: int | None = None) -> float:
         """Take the finished episodes' max impacts (in the tolerance's unit) and step the PID:
@@ -108,6 +116,14 @@ class ImpactMultiplier:
             for _ in range(crossed if self.recent else 0):
                 self._step()
         return self.weight
+
+    def due(self, frames: int) -> bool:
+        """Whether :meth:`observe` at ``frames`` env steps would step the PID (``period`` set,
+        a multiple of it passed since the last call): when to measure the cost, if measuring
+        costs something (e.g. noise-free episodes)."""
+        if self.period is None:
+            raise ValueError("due() needs a period: without one the PID steps per episode")
+        return self.frames >= 0 and frames // self.period > self.frames // self.period
 
     def observe_batch(self, batch: TensorDictBase, frames: int | None = None) -> float:
         """:meth:`observe` a batch of a TorchRL collector (any loop's, e.g. SAC's): the max

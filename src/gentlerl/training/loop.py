@@ -43,7 +43,7 @@ from gentlerl.training.checkpoint import (
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.env_probe import probe_env
-from gentlerl.training.evaluation import rank, rollout_episodes, summarize_episodes
+from gentlerl.training.evaluation import evaluate, rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
 
@@ -133,7 +133,7 @@ class Trainer:
             episodes = progress.finished_episodes(batch)
             for episode in episodes:
                 logger.log({f"episode/{k}": v for k, v in episode.items()}, c["frames"])
-            self._steer(episodes, logger)
+            self._steer(episodes, logger, eval_env)
             self._store(batch)
             if self._learning():
                 self._earn_updates(batch.numel(), pending)
@@ -158,19 +158,20 @@ class Trainer:
         self.counters["frames"] += batch.numel()
         return batch
 
-    def _steer(self, episodes: list[dict[str, float]], logger: RunLogger) -> None:
-        """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``)."""
-        multiplier = self.rewards.multiplier
+    def _steer(self, episodes: list[dict[str, float]], logger: RunLogger, eval_env: Any) -> None:
+        """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``),
+        or with ``multiplier_episodes`` after that many noise-free episodes at each PID step."""
+        multiplier, frames = self.rewards.multiplier, self.counters["frames"]
         if multiplier is None or not self._learning():
             return  # the policy's episodes only: not those of the first random actions
         if not episodes and multiplier.period is None:
             return  # stepped per episode
-        impacts = [e["max_impact"] for e in episodes]
-        weight = multiplier.observe(impacts, frames=self.counters["frames"])
+        if n := self.cfg.gentleness.multiplier_episodes:  # the deployed policy's cost
+            policy, horizon = self.learner.policy, self.builder.horizon
+            episodes = evaluate(eval_env, policy, n, horizon)[1] if multiplier.due(frames) else []
+        weight = multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
         self.learner.loss.set_head_weight(keys.PENALTY, weight)
-        logger.log(
-            {f"train/{k}": v for k, v in multiplier.scalars().items()}, self.counters["frames"]
-        )
+        logger.log({f"train/{k}": v for k, v in multiplier.scalars().items()}, frames)
 
     def _store(self, batch: TensorDictBase) -> None:
         """The models' buffer (1-step transitions) and the learner's (through the n-step writer)."""
