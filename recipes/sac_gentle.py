@@ -6,7 +6,8 @@
 lines marked ``# gentlerl``: the variant's rewards from the env's specs, their sum into the one
 ``reward`` SAC reads, the replay buffer scoring r^sp again at sampling, one model update
 per SAC update, and with ``multiplier=pid`` the penalty's weight in the sum steered toward
-``tolerance`` by the collected episodes (Method III). ``variant=r`` runs plain SAC on the task reward (the components are still
+``tolerance`` by the collected episodes, or by a few noise-free ones per PID step
+(``multiplier_episodes``; Method III). ``variant=r`` runs plain SAC on the task reward (the components are still
 logged, ``r`` sums the task reward alone).
 
 Writes ``run_dir/actor.pt`` (the final actor's state dict) and ``run_dir/final_eval.json``: the final actor's deterministic episodes on a held-out seed,
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import torch
 from omegaconf import OmegaConf
+from tensordict import TensorDictBase
 from tensordict.nn import NormalParamExtractor, TensorDictModule
 from torch import nn
 from torchrl.collectors import Collector
@@ -36,8 +38,8 @@ from tqdm import tqdm
 
 from gentlerl.config import GentlenessConfig, Range, check_group
 from gentlerl.envs import TASKS, make_env
-from gentlerl.rewards import VARIANTS, IntrinsicRewards, SumRewards
-from gentlerl.training import EVAL_SEED_OFFSET, evaluate_actor
+from gentlerl.rewards import VARIANTS, ImpactMultiplier, IntrinsicRewards, SumRewards
+from gentlerl.training import EVAL_SEED_OFFSET, actor_episodes, evaluate_actor
 
 #: The held-out seed of the final evaluation (``gentlerl evaluate --seed 0``).
 FINAL_EVAL_SEED = 0
@@ -65,11 +67,14 @@ class SACConfig:
     lam_prime: list[float] = field(default_factory=lambda: [2.0, 2.0])  # fragile: [2, 1.5]
     reward_delay: int = 1_000  # model updates, as the D4PG grid's cpu scale
     # Method III (docs/GENTLEBENCH.md): the impact one step may deal (N), and the penalty's
-    # weight steered toward it by a PID multiplier (pid; its period in env steps, its cap)
+    # weight steered toward it by a PID multiplier (pid; its period in env steps, its cap, the
+    # weight at mu = 0, and the noise-free episodes per PID step: 0 steers on the collected ones)
     tolerance: float | None = None
     multiplier: str = "none"
     multiplier_period: int | None = None
     multiplier_integral_max: float | None = None
+    multiplier_base: float = 1.0
+    multiplier_episodes: int = 0
     eval_every_frames: int = 5_000
     eval_episodes: int = 5
     final_eval_episodes: int = 20
@@ -151,7 +156,8 @@ def gentleness(cfg: SACConfig) -> GentlenessConfig:
     return GentlenessConfig(  # gentlerl
         lam_prime=tuple(cfg.lam_prime), reward_delay=cfg.reward_delay, tolerance=cfg.tolerance,
         multiplier=cfg.multiplier, multiplier_period=cfg.multiplier_period,
-        multiplier_integral_max=cfg.multiplier_integral_max,
+        multiplier_integral_max=cfg.multiplier_integral_max, multiplier_base=cfg.multiplier_base,
+        multiplier_episodes=cfg.multiplier_episodes,
     )  # fmt: skip
 
 
@@ -166,6 +172,25 @@ def make_env_and_rewards(cfg: SACConfig) -> tuple[TransformedEnv, IntrinsicRewar
     env.append_transform(RewardSum())
     env.append_transform(reward_sum)  # gentlerl
     return env, rewards, reward_sum
+
+
+def steer(  # gentlerl: Method III's multiplier, from either kind of episode
+    multiplier: ImpactMultiplier,
+    batch: TensorDictBase,
+    frames: int,
+    actor: nn.Module,
+    cfg: SACConfig,
+) -> float:
+    """The penalty's weight after this batch: from its finished episodes, or with
+    ``multiplier_episodes`` from that many noise-free episodes of the actor at each PID step
+    (the deployed policy's impacts; each step on episodes of its own seed)."""
+    if not cfg.multiplier_episodes:
+        return multiplier.observe_batch(batch, frames)  # gentlerl: the collected episodes
+    if not multiplier.due(frames):  # gentlerl
+        return multiplier.observe([], frames)  # gentlerl: counts the frames
+    seed, n = cfg.seed + EVAL_SEED_OFFSET + frames, cfg.multiplier_episodes  # gentlerl
+    episodes = actor_episodes(lambda: make_env(cfg.task), actor, n, seed)  # gentlerl
+    return multiplier.observe([e["max_impact"] for e in episodes], frames)  # gentlerl
 
 
 def train(cfg: SACConfig) -> dict[str, float]:
@@ -197,8 +222,8 @@ def train(cfg: SACConfig) -> dict[str, float]:
         rb.extend(batch.exclude("touch_grid", ("next", "touch_grid")).reshape(-1))
         rewards.extend(batch)  # gentlerl: the models' 1-step buffer
         if rewards.multiplier is not None and frames > cfg.init_random_frames:  # gentlerl
-            weight = rewards.multiplier.observe_batch(batch, frames)  # gentlerl: the policy's
-            reward_sum.set_weight("penalty", weight)  # gentlerl: episodes steer the penalty
+            weight = steer(rewards.multiplier, batch, frames, model[0], cfg)  # gentlerl
+            reward_sum.set_weight("penalty", weight)  # gentlerl: the policy's episodes steer
         if frames > cfg.init_random_frames:
             credit += cfg.utd_ratio * batch.numel()
             while credit >= 1:

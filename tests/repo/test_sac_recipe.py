@@ -58,6 +58,33 @@ def test_the_sac_recipe_steers_the_summed_penalty_toward_the_tolerance(tmp_path)
     assert written["penalty_weight"] == result["penalty_weight"]
 
 
+def test_the_sac_recipe_can_steer_on_the_actors_noise_free_episodes(tmp_path, monkeypatch):
+    """multiplier_episodes=2, period 200, base 0: each PID step reads two noise-free episodes
+    of the current actor: the first batch after the random frames (400) only notes the frames,
+    600 and 800 each step on 2 episodes of their own seed; none of the collected episodes."""
+    sac = load("sac_gentle")
+    cfg = sac.parse(
+        [
+            "total_frames=800", "init_random_frames=200", "batch_size=32", "hidden=[16,16]",
+            "reward_delay=10", "eval_every_frames=800", "eval_episodes=1",
+            "final_eval_episodes=1", f"run_dir={tmp_path}", "variant=r+rf", "tolerance=0.05",
+            "multiplier=pid", "multiplier_period=200", "multiplier_base=0",
+            "multiplier_episodes=2",
+        ]
+    )  # fmt: skip
+    calls = []
+    real = sac.actor_episodes
+    monkeypatch.setattr(sac, "actor_episodes", lambda *a, **k: calls.append(a[2:]) or real(*a, **k))
+    multipliers = []
+    real_steer = sac.steer
+    monkeypatch.setattr(sac, "steer", lambda m, *a: multipliers.append(m) or real_steer(m, *a))
+    result = sac.train(cfg)
+    multiplier = multipliers[0]
+    assert (multiplier.steps, multiplier.episodes, multiplier.base) == (2, 4, 0.0)
+    assert [n for n, _ in calls] == [2, 2] and len({seed for _, seed in calls}) == 2
+    assert result["penalty_weight"] == multiplier.weight
+
+
 def test_the_sac_recipe_refuses_a_bad_setting_in_one_line(capsys):
     sac = load("sac_gentle")
     with pytest.raises(SystemExit, match="Key 'bogus' not in 'SACConfig'"):

@@ -12,6 +12,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "gentlerl.training.config": ("TrainConfig", "make_config", "validate"),
         "gentlerl.training.evaluation": (
             "EVAL_SEED_OFFSET",
+            "actor_episodes",
             "evaluate_actor",
             "make_eval_env",
             "summarize",

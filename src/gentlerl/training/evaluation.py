@@ -194,6 +194,29 @@ def summarize(episodes: Sequence[dict[str, float]]) -> dict[str, float]:
     }
 
 
+def actor_episodes(
+    env_factory: Callable[..., EnvBase],
+    actor: TensorDictModule,
+    episodes: int,
+    seed: int = 0,
+    *,
+    force_key: str = keys.TOUCH,
+) -> list[dict[str, float]]:
+    """``episodes`` deterministic episodes of ``actor`` on ``env_factory()``'s env, seeded with
+    ``seed``: one :func:`episode_stats` dict each (``max_impact`` in N, ``return``, ``success``
+    where the env defines it). Torch's global random state is left as it was (an evaluation in
+    the middle of training does not reseed it). Any TorchRL actor that reads the env's
+    observation works (a SAC ``ProbabilisticActor`` acts with its mode)."""
+    check_episodes(episodes)
+    env = make_eval_env(env_factory, seed, episodes, force_key)
+    try:
+        with torch.random.fork_rng():  # the caller's random stream goes on as if not evaluated
+            torch.manual_seed(seed)
+            return evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)[1]
+    finally:
+        env.close()
+
+
 def evaluate_actor(
     env_factory: Callable[..., EnvBase],
     actor: TensorDictModule,
@@ -202,22 +225,10 @@ def evaluate_actor(
     *,
     force_key: str = keys.TOUCH,
 ) -> dict[str, float]:
-    """``episodes`` deterministic episodes of ``actor`` on ``env_factory()``'s env, seeded with
-    ``seed``, as ``gentlerl evaluate --episodes N --seed S`` measures a saved policy.
-
-    Returns :func:`summarize`'s numbers and ``median_max_impact_successful`` (NaN when no
-    episode succeeded). The same ``seed`` gives the same episodes; torch's global random state is
-    left as it was (an evaluation in the middle of training does not reseed it). Any TorchRL actor that reads the env's observation works (a SAC
-    ``ProbabilisticActor`` acts with its mode).
-    """
-    check_episodes(episodes)
-    env = make_eval_env(env_factory, seed, episodes, force_key)
-    try:
-        with torch.random.fork_rng():  # the caller's random stream goes on as if not evaluated
-            torch.manual_seed(seed)
-            _, per_episode = evaluate(env, actor, episodes, max_steps=MAX_EPISODE_STEPS)
-    finally:
-        env.close()
+    """:func:`actor_episodes` summarised, as ``gentlerl evaluate --episodes N --seed S``
+    measures a saved policy: :func:`summarize`'s numbers and ``median_max_impact_successful``
+    (NaN when no episode succeeded). The same ``seed`` gives the same episodes."""
+    per_episode = actor_episodes(env_factory, actor, episodes, seed, force_key=force_key)
     successful = [e["max_impact"] for e in per_episode if e.get("success") == 1.0]
     summary = summarize(per_episode)
     summary["median_max_impact_successful"] = (
