@@ -83,6 +83,12 @@ def test_the_sac_table_prints_each_row_and_the_verdict_of_each_task(tmp_path, ca
     assert "| touch | `r` | 3 | 1.00 / 0.80 / 0.90 | 0.90 | 0.00 | 3.00 / 7.00 | 7.00 |" in out
     assert "| touch | `r+rf+rsp` | 3 | 0.90 / 1.00 / 0.90 | 0.93 |" in out
     assert out.rstrip().endswith("touch: gentleness transfers")  # 4 <= 0.75 x 7, 0.93 >= 0.72
+    for seed in range(3):  # Method III's row: judged against r by the same rule
+        _sac_run(tmp_path, "touch", "new", seed, 0.4, 2.0)
+    assert cli.main(["table", "sac", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "touch: gentleness transfers" in out
+    assert out.rstrip().endswith("touch, new: gentler but less successful")  # 0.4 < 0.72
 
 
 def _bench_run(root, task, variant, seed, returns, impacts, scale=2.0):
