@@ -29,6 +29,18 @@ while (($#)); do
   esac
 done
 
+IFS=, read -r -a kind_list <<< "$kinds,"  # the trailing comma keeps a leading empty kind
+for kind in "${kind_list[@]}"; do  # before any run: a kind no task has is a typo
+  found=0
+  for task in ${tasks//,/ }; do
+    [ -f "recipes/sweeps/method3/method3_$task$kind.yaml" ] && found=1
+  done
+  if [ "$found" = 0 ]; then
+    echo "method3.sh: --kinds '$kind' names no sweep file of the tasks $tasks" >&2
+    exit 2
+  fi
+done
+
 budget=(--set collector.total_frames=30000 --set collector.init_random_frames=5000
   --set gentleness.reward_delay=1000 --set logging.eval_episodes=5
   --set logging.checkpoint_buffer=false --set logging.checkpoint_every_frames=10000
@@ -38,10 +50,13 @@ for task in ${tasks//,/ }; do
     touch|fragile) per=(--set logging.eval_every_frames=5000 --set collector.num_envs=1) ;;
     *) per=(--set logging.eval_every_frames=10000) ;;
   esac
-  IFS=, read -r -a kind_list <<< "$kinds,"  # the trailing comma keeps a leading empty kind
   for kind in "${kind_list[@]}"; do
-    gentlerl sweep "recipes/sweeps/method3/method3_$task$kind.yaml" --workers "$workers" \
-      --out "$out" "${budget[@]}" "${per[@]}"
+    sweep="recipes/sweeps/method3/method3_$task$kind.yaml"
+    if [ ! -f "$sweep" ]; then  # e.g. _deployedw1 exists for the hand's tasks only
+      echo "method3.sh: no $sweep: $task has no '$kind' runs, skipped" >&2
+      continue
+    fi
+    gentlerl sweep "$sweep" --workers "$workers" --out "$out" "${budget[@]}" "${per[@]}"
   done
 done
 for task in ${tasks//,/ }; do

@@ -1,0 +1,39 @@
+"""recipes/grids/method3.sh: which sweep files it runs, and a --kinds typo refused before any."""
+
+import os
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp_path: Path, *args: str) -> tuple[subprocess.CompletedProcess, list[str]]:
+    """The script with a stub ``gentlerl`` that records each call's arguments."""
+    stub = tmp_path / "bin"
+    stub.mkdir(parents=True, exist_ok=True)
+    (stub / "gentlerl").write_text('#!/bin/sh\necho "$*" >> "$CALLS"\n')
+    (stub / "gentlerl").chmod(0o755)
+    calls = tmp_path / "calls"
+    env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}", "CALLS": str(calls)}
+    proc = subprocess.run(
+        ["bash", str(ROOT / "recipes" / "grids" / "method3.sh"), "--out", str(tmp_path), *args],
+        env=env, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    return proc, calls.read_text().splitlines() if calls.exists() else []
+
+
+def test_a_kind_a_task_lacks_is_skipped_and_one_no_task_has_is_refused(tmp_path):
+    tasks = ["--tasks", "finger_turn_easy,touch", "--kinds", "_deployed,_deployedw1"]
+    proc, calls = _run(tmp_path, *tasks)
+    assert proc.returncode == 0, proc.stderr
+    sweeps = [c.split()[1].rsplit("/", 1)[-1] for c in calls if c.startswith("sweep ")]
+    assert sweeps == [
+        "method3_finger_turn_easy_deployed.yaml",
+        "method3_touch_deployed.yaml",
+        "method3_touch_deployedw1.yaml",
+    ]
+    assert "finger_turn_easy has no '_deployedw1' runs, skipped" in proc.stderr
+    assert calls[-1] == f"table method3 {tmp_path}"
+    proc, calls = _run(tmp_path / "typo", "--tasks", "touch", "--kinds", "_deploy")
+    assert proc.returncode == 2 and calls == []
+    assert "--kinds '_deploy' names no sweep file of the tasks touch" in proc.stderr
