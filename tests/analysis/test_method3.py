@@ -106,3 +106,10 @@ def test_runs_that_differ_in_method_iiis_switches_are_not_pooled():
     assert paper.label == "r+rf+rsp (λ'₂=2)"
     assert new.label == "r+rf+rsp (λ'₂=2) + norm + pid"
     assert baseline.label == "r+rf + pid"
+    deployed = {"lam_prime": [2, 2], "multiplier": "pid", "multiplier_episodes": 3}
+    floor = Run(path=None, config={"variant": "r+rf+rsp", "gentleness": deployed})
+    lagrangian = Run(
+        path=None, config={"variant": "r+rf+rsp", "gentleness": {**deployed, "multiplier_base": 0}}
+    )
+    assert floor.label == "r+rf+rsp (λ'₂=2) + pid on the deployed policy"
+    assert lagrangian.label == "r+rf+rsp (λ'₂=2) + pid on the deployed policy, w0=0"

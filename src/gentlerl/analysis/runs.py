@@ -58,7 +58,7 @@ class Run:
     @property
     def label(self) -> str:
         """The variant, its lambda'_2, and Method III's switches where on (``+ norm``, ``+ pid``,
-        ``on the deployed policy``): runs that differ in them are not pooled."""
+        ``on the deployed policy``, ``w0=``): runs that differ in them are not pooled."""
         label = self.variant + (f" (λ'₂={self.lam2:g})" if self.lam2 is not None else "")
         if "rsp" in self.variant and self.setting("gentleness", "curiosity_norm", False):
             label += " + norm"
@@ -66,6 +66,8 @@ class Run:
             label += f" + {self.setting('gentleness', 'multiplier')}"
             if self.setting("gentleness", "multiplier_episodes", 0):
                 label += " on the deployed policy"
+            if (base := float(self.setting("gentleness", "multiplier_base", 1.0))) != 1.0:
+                label += f", w0={base:g}"
         return label
 
     @property
