@@ -88,13 +88,17 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
             f"gentleness.multiplier={gentleness.multiplier} steers toward the tolerance: set "
             "gentleness.tolerance (the impact one step may deal, N)"
         )
-    steering = {"multiplier_period": None, "multiplier_integral_max": None}
-    steering.update(multiplier_base=1.0, multiplier_episodes=0)  # name: its value when unused
-    if gentleness.multiplier == "none":
+    if gentleness.multiplier == "none":  # each set away from its default, which is unused
+        default = type(gentleness)()
         problems += [
             f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier=pid only"
-            for name, unused in steering.items()
-            if getattr(gentleness, name) != unused
+            for name in (
+                "multiplier_period",
+                "multiplier_integral_max",
+                "multiplier_base",
+                "multiplier_episodes",
+            )  # fmt: skip
+            if getattr(gentleness, name) != getattr(default, name)
         ]
     elif gentleness.multiplier_episodes and gentleness.multiplier_period is None:
         problems.append(
