@@ -97,7 +97,7 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
                 "multiplier_integral_max",
                 "multiplier_base",
                 "multiplier_episodes",
-            )  # fmt: skip
+            )
             if getattr(gentleness, name) != getattr(default, name)
         ]
     elif gentleness.multiplier_episodes and gentleness.multiplier_period is None:
