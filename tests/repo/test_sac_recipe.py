@@ -40,18 +40,21 @@ def test_a_tiny_sac_run_updates_the_models_with_the_learner_and_writes_its_evalu
     assert rows[0].startswith("frames,") and [r.split(",")[0] for r in rows[1:]] == ["400", "800"]
 
 
+def _steered(run_dir: Path) -> list[str]:
+    """A tiny SAC run of ``r+rf`` with a PID multiplier at a 0.05 N tolerance (every press is
+    far above it), 200 random frames then 600 of learning."""
+    return [
+        "total_frames=800", "init_random_frames=200", "batch_size=32", "hidden=[16,16]",
+        "reward_delay=10", "eval_every_frames=800", "eval_episodes=1", "final_eval_episodes=1",
+        f"run_dir={run_dir}", "variant=r+rf", "tolerance=0.05", "multiplier=pid",
+    ]  # fmt: skip
+
+
 def test_the_sac_recipe_steers_the_summed_penalty_toward_the_tolerance(tmp_path):
     """multiplier=pid: the collected episodes (impacts far above a 0.05 N tolerance) raise the
     penalty's weight in the one reward SAC reads, once per 100 env steps after the random ones."""
     sac = load("sac_gentle")
-    cfg = sac.parse(
-        [
-            "total_frames=800", "init_random_frames=200", "batch_size=32", "hidden=[16,16]",
-            "reward_delay=10", "eval_every_frames=800", "eval_episodes=1",
-            "final_eval_episodes=1", f"run_dir={tmp_path}", "variant=r+rf", "tolerance=0.05",
-            "multiplier=pid", "multiplier_period=100", "multiplier_integral_max=2",
-        ]
-    )  # fmt: skip
+    cfg = sac.parse([*_steered(tmp_path), "multiplier_period=100", "multiplier_integral_max=2"])
     result = sac.train(cfg)
     assert 1.0 < result["penalty_weight"]
     written = json.loads((tmp_path / "final_eval.json").read_text())
@@ -64,14 +67,8 @@ def test_the_sac_recipe_can_steer_on_the_actors_noise_free_episodes(tmp_path, mo
     600 and 800 each step on 2 episodes of their own seed; none of the collected episodes."""
     sac = load("sac_gentle")
     cfg = sac.parse(
-        [
-            "total_frames=800", "init_random_frames=200", "batch_size=32", "hidden=[16,16]",
-            "reward_delay=10", "eval_every_frames=800", "eval_episodes=1",
-            "final_eval_episodes=1", f"run_dir={tmp_path}", "variant=r+rf", "tolerance=0.05",
-            "multiplier=pid", "multiplier_period=200", "multiplier_base=0",
-            "multiplier_episodes=2",
-        ]
-    )  # fmt: skip
+        [*_steered(tmp_path), "multiplier_period=200", "multiplier_base=0", "multiplier_episodes=2"]
+    )
     calls = []
     real = sac.actor_episodes
     monkeypatch.setattr(sac, "actor_episodes", lambda *a, **k: calls.append(a[2:]) or real(*a, **k))
