@@ -7,12 +7,14 @@
 # (`gentlerl evaluate`, seed 0) and the table (`gentlerl table method3`).
 #
 #   bash recipes/grids/method3.sh [--workers N] [--out DIR] [--episodes N]
-#                                 [--tasks finger_turn_easy,touch,fragile] [--kinds ,_steered]
+#                                 [--tasks finger_turn_easy,finger_spin,touch,fragile]
+#                                 [--kinds ,_steered]
 # --kinds picks the sweep files per task (method3_<task><kind>.yaml): "" the unsteered pair,
 # _steered the first amendment's steered pair, _paced the second amendment's (touch, fragile),
 # _normonly and _pidonly the third amendment's (each mechanism alone on r+rf+rsp), _deployed the
 # fourth's pair (a plain Lagrangian on the deployed policy's episodes), _deployedw1 its
-# attribution row (the same with the paper's weight as floor; touch, fragile).
+# attribution row (the same with the paper's weight as floor), the fifth's candidate on the fingers.
+# Budget: 30k env steps per run; finger_spin 50k (where `r` learns it, docs/FINGER.md).
 # Resumable: finished runs (DONE) are skipped; evaluations are redone.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -41,7 +43,7 @@ for kind in "${kind_list[@]}"; do  # before any run: a kind no task has is a typ
   fi
 done
 
-budget=(--set collector.total_frames=30000 --set collector.init_random_frames=5000
+budget=(--set collector.init_random_frames=5000
   --set gentleness.reward_delay=1000 --set logging.eval_episodes=5
   --set logging.checkpoint_buffer=false --set logging.checkpoint_every_frames=10000
   --set logging.progress=false --set logging.wandb_mode=disabled)
@@ -50,6 +52,9 @@ for task in ${tasks//,/ }; do
     touch|fragile) per=(--set logging.eval_every_frames=5000 --set collector.num_envs=1) ;;
     *) per=(--set logging.eval_every_frames=10000) ;;
   esac
+  frames=30000
+  [ "$task" = finger_spin ] && frames=50000
+  per+=(--set collector.total_frames=$frames)
   for kind in "${kind_list[@]}"; do
     sweep="recipes/sweeps/method3/method3_$task$kind.yaml"
     if [ ! -f "$sweep" ]; then  # e.g. _deployedw1 exists for the hand's tasks only

@@ -4,7 +4,7 @@ import pytest
 import yaml
 
 from gentlerl import cli
-from gentlerl.analysis.criteria import method3_equal_impact, method3_verdicts
+from gentlerl.analysis.method3_criteria import method3_equal_impact, method3_verdicts
 
 
 def _row(score: float, impact: float, rsp: float = 1.0) -> dict[str, float]:
@@ -34,8 +34,33 @@ def test_the_tests_by_hand():
     assert out["H2 fragile"] == "does not hold (0.70)"
     assert out["F1 finger-turn_easy"].startswith("holds")  # 250 >= 240, 19 <= 20
     assert out["B touch"].startswith("not at equal impact")
-    assert out["N curiosity size"] == "does not hold (finger / touch = 2.50)"
+    assert out["N finger-turn_easy"] == "does not hold (finger-turn_easy / touch = 2.50)"
     assert "B fragile" not in out  # no baseline row: no test
+
+
+def test_the_fifth_amendments_candidate_gets_every_test_on_both_fingers():
+    rows = {
+        "touch": {"new, w0=1": _row(0.93, 2.63, rsp=1.3)},
+        "finger-turn_easy": {
+            "r": _row(300.0, 40.0),
+            "new, w0=1": _row(240.0, 20.0, rsp=2.4),  # 0.8x at 0.5x: both at the threshold
+            "baseline": _row(250.0, 18.0),  # 20 <= 1.25 x 18 = 22.5: equal enough, 240 < 250
+        },
+        "finger-spin": {"r": _row(145.5, 700.0), "new, w0=1": _row(116.0, 10.0, rsp=0.6)},
+    }
+    out = method3_verdicts(rows)
+    assert out == {
+        "H1 touch, new, w0=1": "does not hold (success 0.93 at 2.63 N)",
+        "F1 finger-turn_easy, new, w0=1": (
+            "holds (median return 240.0 vs r 300.0, 20.0 vs 40.0 N)"
+        ),
+        "F2 finger-spin, new, w0=1": (  # 116.0 < 0.8 x 145.5 = 116.4
+            "does not hold (median return 116.0 vs r 145.5, 10.0 vs 700.0 N)"
+        ),
+        "B finger-turn_easy, new, w0=1": "does not hold (240.00 at 20.00 N vs 250.00 at 18.00 N)",
+        "N finger-turn_easy, new, w0=1": "holds (finger-turn_easy / touch = 1.85)",
+        "N finger-spin, new, w0=1": "does not hold (finger-spin / touch = 0.46)",
+    }
 
 
 def _run(root, name, config, episodes, rsp=None):
@@ -73,8 +98,8 @@ def test_the_table_labels_the_four_rows_and_prints_the_tests(tmp_path, capsys):
 
 
 def test_each_mechanism_alone_gets_its_own_row_and_hand_tests():
-    from gentlerl.analysis.criteria import method3_verdicts
     from gentlerl.analysis.method3 import method3_label
+    from gentlerl.analysis.method3_criteria import method3_verdicts
     from gentlerl.analysis.runs import Run
 
     def label(variant, **gentleness):

@@ -23,17 +23,32 @@ def _run(tmp_path: Path, *args: str) -> tuple[subprocess.CompletedProcess, list[
 
 
 def test_a_kind_a_task_lacks_is_skipped_and_one_no_task_has_is_refused(tmp_path):
-    tasks = ["--tasks", "finger_turn_easy,touch", "--kinds", "_deployed,_deployedw1"]
+    tasks = ["--tasks", "finger_turn_easy,touch", "--kinds", "_deployed,_pidonly"]
     proc, calls = _run(tmp_path, *tasks)
     assert proc.returncode == 0, proc.stderr
     sweeps = [c.split()[1].rsplit("/", 1)[-1] for c in calls if c.startswith("sweep ")]
     assert sweeps == [
         "method3_finger_turn_easy_deployed.yaml",
         "method3_touch_deployed.yaml",
-        "method3_touch_deployedw1.yaml",
+        "method3_touch_pidonly.yaml",
     ]
-    assert "finger_turn_easy has no '_deployedw1' runs, skipped" in proc.stderr
+    assert "finger_turn_easy has no '_pidonly' runs, skipped" in proc.stderr
     assert calls[-1] == f"table method3 {tmp_path}"
     proc, calls = _run(tmp_path / "typo", "--tasks", "touch", "--kinds", "_deploy")
     assert proc.returncode == 2 and calls == []
     assert "--kinds '_deploy' names no sweep file of the tasks touch" in proc.stderr
+
+
+def test_finger_spin_runs_at_its_own_budget(tmp_path):
+    """50k env steps on finger-spin (where `r` learns it), 30k everywhere else; one each."""
+    proc, calls = _run(
+        tmp_path, "--tasks", "finger_spin,finger_turn_easy", "--kinds", "_deployedw1"
+    )
+    assert proc.returncode == 0, proc.stderr
+    sweeps = [c for c in calls if c.startswith("sweep ")]
+    assert [c.split()[1].rsplit("/", 1)[-1] for c in sweeps] == [
+        "method3_finger_spin_deployedw1.yaml",
+        "method3_finger_turn_easy_deployedw1.yaml",
+    ]
+    frames = [[a for a in c.split() if a.startswith("collector.total_frames=")] for c in sweeps]
+    assert frames == [["collector.total_frames=50000"], ["collector.total_frames=30000"]]

@@ -6,7 +6,7 @@
   holds, otherwise ``not reproduced``; a claim whose runs are missing is ``no data``;
 - the SAC grid of docs/SAC.md: :func:`sac_verdict`, one per task;
 - GentleBench of docs/GENTLEBENCH.md: :func:`gentlebench_verdict`, one per task and variant;
-- its Method III amendment: :func:`method3_verdicts` (tests H1, H2, F1, B, N).
+- its Method III amendments: :mod:`gentlerl.analysis.method3_criteria`.
 
 The tables these rules judge are :mod:`gentlerl.analysis.grid_tables` and
 :mod:`gentlerl.analysis.method3` (``gentlerl table``).
@@ -240,61 +240,3 @@ def sac_verdict(task: str, r: Mapping[str, float], rsp: Mapping[str, float]) -> 
     if task == "fragile" and rsp["mean_success"] >= r["mean_success"] + 0.3:
         words += "; helps on the fragile block"
     return words
-
-
-#: The Method III grid's rows per task, in table order (:mod:`gentlerl.analysis.method3`).
-METHOD3_VARIANTS = ("r", "r+rf+rsp", "new", "baseline", "norm alone", "pid alone", "new, w0=1")
-
-
-def _test(holds: bool, numbers: str) -> str:
-    return ("holds" if holds else "does not hold") + f" ({numbers})"
-
-
-def method3_equal_impact(new: Mapping[str, float], baseline: Mapping[str, float]) -> str:
-    """Test B: the new method's score (success or return) >= the baseline's when its median max
-    impact is at most 1.25 x the baseline's; above that, "not at equal impact"."""
-    numbers = f"{new['score']:.2f} at {new['median_impact']:.2f} N vs "
-    numbers += f"{baseline['score']:.2f} at {baseline['median_impact']:.2f} N"
-    if new["median_impact"] > 1.25 * baseline["median_impact"]:
-        return f"not at equal impact ({numbers})"
-    return _test(new["score"] >= baseline["score"], numbers)
-
-
-def method3_verdicts(rows: Mapping[str, Mapping[str, Mapping[str, float]]]) -> dict[str, str]:
-    """docs/GENTLEBENCH.md's Method III tests on the grid's rows (task -> variant -> row with
-    ``score``, ``median_score``, ``median_impact``, ``rsp_per_contact``); a test whose rows are
-    missing is absent.
-
-    H1: touch, new's success >= 0.95 at a median max impact <= 3 N. H2: fragile, new's success
-    >= 0.8 (both also per mechanism alone, the third amendment; the fourth's ``new, w0=1``).
-    F1: finger-turn_easy, new's median return >= 0.8 x ``r``'s at <= 0.5 x its median max
-    impact. B: :func:`method3_equal_impact` per task. N: new's r^sp per contact step on
-    finger-turn_easy within 2x of its value on touch.
-    """
-    new = {task: labels["new"] for task, labels in rows.items() if "new" in labels}
-    out = {}
-    for label in ("new", "norm alone", "pid alone", "new, w0=1"):
-        t, f = rows.get("touch", {}).get(label), rows.get("fragile", {}).get(label)
-        named = "" if label == "new" else f", {label}"
-        if t:
-            numbers = f"success {t['score']:.2f} at {t['median_impact']:.2f} N"
-            out["H1 touch" + named] = _test(t["score"] >= 0.95 and t["median_impact"] <= 3, numbers)
-        if f:
-            out["H2 fragile" + named] = _test(f["score"] >= 0.8, f"{f['score']:.2f}")
-    finger = "finger-turn_easy"
-    if finger in new and "r" in rows[finger]:
-        f, r = new[finger], rows[finger]["r"]
-        out["F1 finger-turn_easy"] = _test(
-            f["median_score"] >= 0.8 * r["median_score"]
-            and f["median_impact"] <= 0.5 * r["median_impact"],
-            f"median return {f['median_score']:.1f} vs r {r['median_score']:.1f}, "
-            f"{f['median_impact']:.1f} vs {r['median_impact']:.1f} N",
-        )
-    for task, labels in rows.items():
-        if "new" in labels and "baseline" in labels:
-            out[f"B {task}"] = method3_equal_impact(labels["new"], labels["baseline"])
-    if finger in new and "touch" in new:
-        finger_rsp, touch_rsp = new[finger]["rsp_per_contact"], new["touch"]["rsp_per_contact"]
-        ratio = finger_rsp / touch_rsp if touch_rsp else float("nan")
-        out["N curiosity size"] = _test(0.5 <= ratio <= 2.0, f"finger / touch = {ratio:.2f}")
-    return out

@@ -1,7 +1,7 @@
 """The Method III grid's table (docs/GENTLEBENCH.md, "Method III amendment";
 ``recipes/grids/method3.sh``): per task, ``r``, the paper's ``r+rf+rsp``, the new method and the
 constrained baseline side by side, in the safe-RL benchmarks' form, with the pre-registered tests
-(:func:`gentlerl.analysis.criteria.method3_verdicts`).
+(:func:`gentlerl.analysis.method3_criteria.method3_verdicts`).
 
 Reads each run's final actor's episodes (``final_eval_episodes.csv``, written by ``gentlerl
 evaluate``), its config, its ``train/penalty_surprise_per_contact_step`` and
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from gentlerl.analysis.criteria import METHOD3_VARIANTS, method3_verdicts
+from gentlerl.analysis.method3_criteria import METHOD3_VARIANTS, method3_verdicts
 from gentlerl.analysis.runs import Run, find_runs
 
 #: The frames at the end of a run over which r^sp per contact step is averaged.
