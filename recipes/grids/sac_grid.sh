@@ -5,8 +5,9 @@
 # Usage: bash recipes/grids/sac_grid.sh [--out DIR] [--workers N] [--tasks "touch fragile"]
 #                                       [--variants "r r+rf+rsp"] [--utd R]
 # --variants also takes Method III's rows (docs/SAC.md, Method III amendment): `new` (r+rf+rsp
-# with the PID Lagrangian on the actor's noise-free episodes at the tolerance T = 2 N) and
-# `baseline` (r+rf with the same); --utd sets the recipe's utd_ratio (default: the recipe's).
+# with the PID Lagrangian on the actor's noise-free episodes at the tolerance T = 2 N, w = mu),
+# `new_w1` (the same with the paper's weight as floor, w = 1 + mu: the fifth amendment's
+# candidate) and `baseline` (r+rf with new's); --utd sets the recipe's utd_ratio.
 # Not `gentlerl sweep`: a sweep's points are `gentlerl-train` runs, their keys TrainConfig fields
 # (checked against it before anything runs); recipes/sac_gentle.py is another program with its
 # own settings (SACConfig: lam_prime, total_frames, ...), so this loop runs its grid instead.
@@ -27,7 +28,7 @@ case "$workers" in
   '' | *[!0-9]* | 0) echo "--workers must be a positive integer, got '$workers'" >&2; exit 2 ;;
 esac
 steered=(tolerance=2.0 multiplier=pid multiplier_period=1000 multiplier_integral_max=3.0
-  multiplier_base=0.0 multiplier_episodes=3)
+  multiplier_episodes=3)
 here="$(cd "$(dirname "$0")" && pwd)"
 failed=0
 # Each run's arguments stay separate words (no shell re-reads --out); its output goes to
@@ -36,8 +37,9 @@ for task in $tasks; do
   lam="[2,2]"; [ "$task" = fragile ] && lam="[2,1.5]"
   for variant in $variants; do
     case "$variant" in
-      new) args=(variant=r+rf+rsp "${steered[@]}") ;;
-      baseline) args=(variant=r+rf "${steered[@]}") ;;
+      new) args=(variant=r+rf+rsp "${steered[@]}" multiplier_base=0.0) ;;
+      new_w1) args=(variant=r+rf+rsp "${steered[@]}" multiplier_base=1.0) ;;
+      baseline) args=(variant=r+rf "${steered[@]}" multiplier_base=0.0) ;;
       *) args=("variant=$variant") ;;
     esac
     [ -n "$utd" ] && args+=("utd_ratio=$utd")

@@ -89,6 +89,10 @@ def test_the_sac_table_prints_each_row_and_the_verdict_of_each_task(tmp_path, ca
     out = capsys.readouterr().out
     assert "touch: gentleness transfers" in out
     assert out.rstrip().endswith("touch, new: gentler but less successful")  # 0.4 < 0.72
+    for seed in range(3):  # the fifth amendment's candidate (w = 1 + mu), judged alike
+        _sac_run(tmp_path, "touch", "new_w1", seed, 0.9, 2.0)
+    assert cli.main(["table", "sac", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("touch, new_w1: gentleness transfers")
 
 
 def _bench_run(root, task, variant, seed, returns, impacts, scale=2.0):

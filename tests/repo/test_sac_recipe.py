@@ -117,16 +117,18 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
     )
     assert bad.returncode == 2 and "--workers must be a positive integer, got '0'" in bad.stderr
     (tmp_path / "argv").unlink()
-    method3 = ["--tasks", "touch", "--variants", "r new", "--utd", "1", "--out", "m3"]
+    method3 = ["--tasks", "touch", "--variants", "r new new_w1", "--utd", "1", "--out", "m3"]
     proc = subprocess.run(
         ["bash", str(RECIPES / "grids" / "sac_grid.sh"), *method3],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     argv = (tmp_path / "argv").read_text().splitlines()
-    assert argv.count("utd_ratio=1") == 6 and argv.count("task=fragile") == 0
-    assert argv.count("variant=r+rf+rsp") == 3 and argv.count("multiplier_episodes=3") == 3
-    assert "run_dir=m3/touch/new/seed2" in argv
+    assert argv.count("utd_ratio=1") == 9 and argv.count("task=fragile") == 0
+    assert argv.count("variant=r+rf+rsp") == 6 and argv.count("multiplier_episodes=3") == 6
+    # new is a plain Lagrangian (w = mu), new_w1 keeps the paper's weight as floor (w = 1 + mu)
+    assert argv.count("multiplier_base=0.0") == 3 and argv.count("multiplier_base=1.0") == 3
+    assert "run_dir=m3/touch/new/seed2" in argv and "run_dir=m3/touch/new_w1/seed0" in argv
 
 
 @pytest.mark.parametrize(
