@@ -1,7 +1,8 @@
 """End-to-end training speed: one short run of ``gentlerl train`` at the paper's scale, timed.
 
     python benchmarks/e2e_speed.py [--task fragile] [--frames 30000] [--random-frames 10000]
-        [--device cuda] [--graphs] [--workers 8] [--threads 4] [--json F]
+        [--device cuda] [--graphs] [--workers 8] [--threads 4] [--run-dir D] [--json F]
+    python benchmarks/e2e_speed.py --from-logs D --random-frames 10000   (a stopped run's rates)
 
 The run is the paper preset (``scale=paper``: batch 256, critics 400-300, one update per frame)
 with the learner on ``--device`` (``--graphs``: ``learner.compile`` + ``learner.cudagraphs``),
@@ -10,7 +11,9 @@ collector with 4 hands), no checkpoint and one 5-episode evaluation. It reports 
 clock, frames/s over the run, the loop's own ``train/updates_per_s`` (model + learner updates,
 sampling and priorities; collection excluded) after the random frames, and the time a 500k-frame
 run would take at those rates (``init_random_frames`` at the random-phase rate, the rest at the
-learning rate): the measured floor of the paper-scale goal.
+learning rate): the measured floor of the paper-scale goal. The loop logs (and flushes) its
+scalars every 100 updates, so a run stopped by a time limit (``--run-dir`` keeps its logs) still
+gives its rates up to where it stopped: ``--from-logs`` reads them without training.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from gentlerl.analysis.runs import load_run
 from gentlerl.training import make_config, train
@@ -31,6 +35,7 @@ PAPER_FRAMES = 500_000
 
 
 def run(args: argparse.Namespace, run_dir: Path) -> dict:
+    """Train once as the module says; the row of :func:`rates` with the run's wall clock."""
     collector = {"total_frames": args.frames, "init_random_frames": args.random_frames}
     if args.workers > 1:
         collector |= {"kind": "multi", "num_workers": args.workers, "num_envs": 1}
@@ -55,30 +60,45 @@ def run(args: argparse.Namespace, run_dir: Path) -> dict:
     start = time.perf_counter()
     summary = train(cfg)
     wall = time.perf_counter() - start
+    return rates(run_dir, args.random_frames) | {
+        "wall_s": wall,
+        "final_success": summary.get("success"),
+    }
+
+
+def rates(run_dir: Path, random_frames: int) -> dict:
+    """A (finished or stopped) run's rates from its logged ``train/wall_s`` and
+    ``train/updates_per_s``: frames/s while random and while learning, the loop's median
+    updates/s, and a 500k-frame run's time at those rates."""
+    if not (run_dir / "config.yaml").is_file():
+        raise SystemExit(f"{run_dir}: no config.yaml, not a gentlerl run directory")
+    cfg = yaml.safe_load((run_dir / "config.yaml").read_text())
     scalars = load_run(run_dir).scalars  # (frames, values) of each logged scalar
-    ups = np.stack(scalars["train/updates_per_s"], -1)
+    if "train/wall_s" not in scalars:
+        raise SystemExit(f"{run_dir}: no train/wall_s logged yet (stopped before the first log)")
+    ups = np.stack(scalars.get("train/updates_per_s", (np.zeros(0), np.zeros(0))), -1)
     steps = np.stack(scalars["train/wall_s"], -1)
-    random = steps[steps[:, 0] <= args.random_frames]
-    learning = steps[steps[:, 0] > args.random_frames]
+    random = steps[steps[:, 0] <= random_frames]
+    learning = steps[steps[:, 0] > random_frames]
     random_fps = random[-1, 0] / random[-1, 1] if len(random) else float("nan")
     learn_fps = (
         (learning[-1, 0] - random[-1, 0]) / (learning[-1, 1] - random[-1, 1])
         if len(learning) and len(random)
         else float("nan")
     )
-    projected = args.random_frames / random_fps + (PAPER_FRAMES - args.random_frames) / learn_fps
+    projected = random_frames / random_fps + (PAPER_FRAMES - random_frames) / learn_fps
     return {
-        "task": args.task,
-        "device": args.device,
-        "graphs": args.graphs,
-        "workers": args.workers,
-        "frames": args.frames,
-        "wall_s": wall,
+        "task": cfg["task"],
+        "device": cfg["learner"]["device"],
+        "graphs": bool(cfg["learner"]["cudagraphs"]),
+        "workers": cfg["collector"]["num_workers"] if cfg["collector"]["kind"] == "multi" else 1,
+        "frames": int(steps[-1, 0]),
+        "wall_s": float(steps[-1, 1]),
         "random_phase_frames_per_s": random_fps,
         "learning_frames_per_s": learn_fps,
         "loop_updates_per_s_median": float(np.median(ups[:, 1])) if len(ups) else float("nan"),
         "projected_500k_min": projected / 60,
-        "final_success": summary.get("success"),
+        "final_success": None,
     }
 
 
@@ -92,14 +112,21 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--threads", type=int, default=1, help="torch threads of the learner")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--run-dir", help="where the run writes (default: a temporary folder)")
+    parser.add_argument("--from-logs", metavar="RUN_DIR", help="only read a run's logged rates")
     parser.add_argument("--json")
     args = parser.parse_args()
     if not 0 < args.random_frames < args.frames:
         parser.error(
             f"need 0 < --random-frames < --frames, got {args.random_frames}, {args.frames}"
         )
-    with tempfile.TemporaryDirectory() as tmp:
-        row = run(args, Path(tmp) / "run")
+    if args.from_logs:
+        row = rates(Path(args.from_logs), args.random_frames)
+    elif args.run_dir:
+        row = run(args, Path(args.run_dir))
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            row = run(args, Path(tmp) / "run")
     print(json.dumps(row), flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(row, indent=1))
