@@ -57,7 +57,7 @@ for task in ${tasks//,/ }; do
   per+=(--set collector.total_frames=$frames)
   for kind in "${kind_list[@]}"; do
     sweep="recipes/sweeps/method3/method3_$task$kind.yaml"
-    if [ ! -f "$sweep" ]; then  # e.g. _deployedw1 exists for the hand's tasks only
+    if [ ! -f "$sweep" ]; then  # e.g. _pidonly exists for the hand's tasks only
       echo "method3.sh: no $sweep: $task has no '$kind' runs, skipped" >&2
       continue
     fi

@@ -76,7 +76,8 @@ def foreign_tests(rows: Rows, label: str) -> dict[str, str]:
     for task in FOREIGN_TESTS:
         new = rows.get(task, {}).get(label)
         if new and touch:
-            ratio = new["rsp_per_contact"] / touch["rsp_per_contact"]
+            rsp = touch["rsp_per_contact"]
+            ratio = new["rsp_per_contact"] / rsp if rsp else float("nan")
             numbers = f"{task} / touch = {ratio:.2f}"
             out[f"N {task}{named}"] = _test(0.5 <= ratio <= 2.0, numbers)
     return out
