@@ -52,3 +52,20 @@ def test_finger_spin_runs_at_its_own_budget(tmp_path):
     ]
     frames = [[a for a in c.split() if a.startswith("collector.total_frames=")] for c in sweeps]
     assert frames == [["collector.total_frames=50000"], ["collector.total_frames=30000"]]
+
+
+def test_frames_sets_every_tasks_budget_and_a_bad_one_is_refused(tmp_path):
+    """--frames N replaces each task's budget (the sixth amendment's finger-turn_easy probe)."""
+    proc, calls = _run(
+        tmp_path, "--tasks", "finger_turn_easy", "--kinds", "_budget", "--frames", "100000"
+    )
+    assert proc.returncode == 0, proc.stderr
+    sweeps = [c for c in calls if c.startswith("sweep ")]
+    assert [c.split()[1].rsplit("/", 1)[-1] for c in sweeps] == [
+        "method3_finger_turn_easy_budget.yaml"
+    ]
+    assert "collector.total_frames=100000" in sweeps[0].split()
+    for bad in ("0", "1e5", "-5", "10k"):
+        proc, calls = _run(tmp_path / f"bad{bad}", "--frames", bad)
+        assert proc.returncode == 2 and calls == [], bad
+        assert f"--frames must be a positive integer, got '{bad}'" in proc.stderr
