@@ -55,7 +55,7 @@ if [[ " $SECTIONS " == *" env "* ]]; then
 fi
 if [[ " $SECTIONS " == *" learner "* ]]; then
   echo "=== learner" >>"$LOG"
-  run "${LEARNER_LIMIT:-240}" learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 0 5 \
+  run "${LEARNER_LIMIT:-240}" learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 5 --models \
     --modes ${LEARNER_MODES:-eager cudagraphs compile+cudagraphs compile} --min-time 1.5 --json "$OUT_DIR/learner.json"
 fi
 if [[ " $SECTIONS " == *" collect "* ]]; then

@@ -1,4 +1,5 @@
-"""ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters."""
+"""ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters;
+SeedBatchedModelStep: S seeds' steps in one equal S ModelSteps."""
 
 import pytest
 import torch
@@ -6,7 +7,7 @@ import torch
 from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.objectives.compile import compile_unavailable
-from gentlerl.rewards.model_step import ModelStep
+from gentlerl.rewards.model_step import ModelStep, SeedBatchedModelStep
 from tests.agent.test_learner import _batch
 
 
@@ -51,3 +52,44 @@ def test_cudagraphs_on_cpu_is_refused_in_one_line():
         ValueError, match="cudagraphs needs the model on a CUDA device, this one is"
     ):
         _step(cudagraphs=True)
+
+
+def _losses(seeds):
+    return [
+        EnsembleModelLoss(
+            PenaltyModel(3, 1, ensemble_size=2, hidden=(8, 8), seed=s), name="penalty"
+        )
+        for s in seeds
+    ]
+
+
+def test_seed_batched_steps_equal_one_model_step_per_seed():
+    """Weights, Adam state and the normaliser statistics of 3 seeds after 3 steps of one vmapped
+    step equal those of 3 separate steps, seed by seed; the seeds stay different."""
+    seeds = (0, 1, 2)
+    singles = [ModelStep(loss, 1e-2) for loss in _losses(seeds)]
+    batched = SeedBatchedModelStep(_losses(seeds), 1e-2)
+    for k in range(3):
+        batches = [_penalty_batch(10 * k + s) for s in seeds]
+        expected = torch.tensor([step(b.clone()) for step, b in zip(singles, batches, strict=True)])
+        got = batched(torch.stack(batches))
+        assert got.shape == (3,)
+        torch.testing.assert_close(got, expected, rtol=1e-5, atol=1e-6)
+    for s, single in enumerate(singles):
+        mine = batched.write_back(s).model_params
+        for key, value in single.loss.model_params.items(True, True):
+            torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)
+    counts = batched.params.get(("input_norm", "count"))
+    assert counts.shape == (3,) and torch.all(counts > 3 * 16)  # every step's 2 x 8 samples
+    first = [p for p in batched.params.values(True, True) if p.requires_grad][0]
+    assert not torch.allclose(first[0], first[1])
+
+
+def test_seed_batched_model_step_refuses_a_batch_without_its_seeds():
+    step = SeedBatchedModelStep(_losses((0, 1, 2)), 1e-2)
+    with pytest.raises(ValueError, match=r"batch shaped \[num_seeds=3, ...\], got \(2, 8\)"):
+        step(_penalty_batch(0))
+    with pytest.raises(ValueError, match="needs at least one loss"):
+        SeedBatchedModelStep([], 1e-2)
+    with pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"):
+        SeedBatchedModelStep(_losses((0,)), 1e-2, cudagraphs=True)

@@ -66,14 +66,21 @@ class EnsembleModelLoss(LossModule):
             f"got {tuple(size)}"
         )
 
-    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+    def losses(self, tensordict: TensorDictBase, params: TensorDictBase) -> TensorDict:
+        """``loss_<name>`` of the model whose parameters and normaliser statistics are ``params``
+        (the structure of ``model_params``); in training mode the statistics in ``params`` first
+        take in the batch. ``torch.vmap`` over a stack of ``params`` runs several seeds' models
+        at once (:class:`~gentlerl.rewards.model_step.SeedBatchedModelStep`)."""
         if self.per_member:
             tensordict = self.bootstrap(tensordict)
-        with self.model_params.to_module(self.model, preserve_module_state=False):
+        with params.to_module(self.model, preserve_module_state=False):
             if self.training:
                 self.model.update_normalizers(tensordict)
             nll = self.model.nll(tensordict, per_member=self.per_member)
         return TensorDict({f"loss_{self.name}": nll.mean()}, batch_size=[])
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        return self.losses(tensordict, self.model_params)
 
     def predict_target(self, tensordict: TensorDictBase) -> object:
         """The *target* model's ``predict`` (no gradient), as the surprise transforms use it."""
