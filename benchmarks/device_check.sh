@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # The GPU machine's check, in one command of at most 8 minutes: the machine (GPU, driver, torch,
-# CUDA), the learner (eager vs CUDA graph vs compiled, 1 vs 5 seeds, paper scale), collection
-# (1, 4 and 16 worker processes) and a short end-to-end training run with the learner on the GPU;
+# CUDA), the learner (eager vs CUDA graph vs compiled, 1 vs 5 seeds, with and without the penalty
+# ensemble, paper scale), the replay's sample + priority update (CPU vs GPU storage), collection
+# (1, 4 and 16 worker processes) and a short end-to-end training run with the learner and its
+# replay on the GPU;
 # a dated markdown table goes to OUT_DIR/device_table.md (append it to benchmarks/RESULTS.md).
 #
-#   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner collect e2e
+#   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner replay collect e2e
 #   LEARNER_MODES="cudagraphs" LEARNER_LIMIT=120 E2E_FRAMES=25000 E2E_LIMIT=150 bash ... (a shorter check)
 #
 # Packages: the machine's own python3 (torch with CUDA); what it lacks (torchrl, tensordict,
@@ -15,7 +17,7 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT_DIR="${1:-${OUT:-/tmp/device_check}}"
 shift || true
-SECTIONS="${*:-env learner collect e2e}"
+SECTIONS="${*:-env learner replay collect e2e}"
 mkdir -p "$OUT_DIR"
 PY="${PYTHON:-python3}"
 export PYTHONPATH="$PWD/src:$PWD/benchmarks"
@@ -58,6 +60,11 @@ if [[ " $SECTIONS " == *" learner "* ]]; then
   run "${LEARNER_LIMIT:-240}" learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 5 --models \
     --modes ${LEARNER_MODES:-eager cudagraphs compile+cudagraphs compile} --min-time 1.5 --json "$OUT_DIR/learner.json"
 fi
+if [[ " $SECTIONS " == *" replay "* ]]; then
+  echo "=== replay" >>"$LOG"
+  run 60 replay "$PY" benchmarks/replay_device.py --devices cpu cuda --min-time 1.5 \
+    --json "$OUT_DIR/replay.json"
+fi
 if [[ " $SECTIONS " == *" collect "* ]]; then
   echo "=== collect" >>"$LOG"
   run 100 collect "$PY" benchmarks/collect_scale.py --workers 1 4 16 --hands 4 --batches 8 \
@@ -67,7 +74,7 @@ if [[ " $SECTIONS " == *" e2e "* ]]; then
   echo "=== e2e" >>"$LOG"
   E2E_RUN=/tmp/gentlerl_e2e_run  # not under OUT_DIR: a finished run's checkpoint is large
   rm -rf "$E2E_RUN"
-  run "${E2E_LIMIT:-200}" e2e "$PY" benchmarks/e2e_speed.py --device cuda --graphs --workers 12 --threads 2 \
+  run "${E2E_LIMIT:-200}" e2e "$PY" benchmarks/e2e_speed.py --device cuda --graphs --replay-on-device --workers 12 --threads 2 \
     --frames "${E2E_FRAMES:-30000}" --run-dir "$E2E_RUN" --json "$OUT_DIR/e2e.json"
   if [ ! -f "$OUT_DIR/e2e.json" ]; then  # stopped by its limit: its rates up to there
     echo "=== e2e_stopped" >>"$LOG"

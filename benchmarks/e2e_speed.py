@@ -1,11 +1,13 @@
 """End-to-end training speed: one short run of ``gentlerl train`` at the paper's scale, timed.
 
     python benchmarks/e2e_speed.py [--task fragile] [--frames 30000] [--random-frames 10000]
-        [--device cuda] [--graphs] [--workers 8] [--threads 4] [--run-dir D] [--json F]
+        [--device cuda] [--graphs] [--replay-on-device] [--workers 8] [--threads 4]
+        [--run-dir D] [--json F]
     python benchmarks/e2e_speed.py --from-logs D --random-frames 10000   (a stopped run's rates)
 
 The run is the paper preset (``scale=paper``: batch 256, critics 400-300, one update per frame)
-with the learner on ``--device`` (``--graphs``: ``learner.compile`` + ``learner.cudagraphs``),
+with the learner on ``--device`` (``--graphs``: ``learner.compile`` + ``learner.cudagraphs``;
+``--replay-on-device``: ``replay.device=learner``, the replay and its priority trees there too),
 collection by ``--workers`` env processes (TorchRL's ``MultiSyncCollector``; 1: the single
 collector with 4 hands), no checkpoint and one 5-episode evaluation. It reports the run's wall
 clock, frames/s over the run, the loop's own ``train/updates_per_s`` (model + learner updates,
@@ -49,6 +51,7 @@ def run(args: argparse.Namespace, run_dir: Path) -> dict:
         num_threads=args.threads,
         collector=collector,
         learner=learner,
+        replay={"device": "learner" if args.replay_on_device else "cpu"},
         logging={
             "eval_every_frames": 10**9,
             "checkpoint_every_frames": 10**9,
@@ -109,6 +112,7 @@ def main() -> None:
     parser.add_argument("--random-frames", type=int, default=10_000)
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--graphs", action="store_true", help="learner.compile + cudagraphs")
+    parser.add_argument("--replay-on-device", action="store_true", help="replay.device=learner")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--threads", type=int, default=1, help="torch threads of the learner")
     parser.add_argument("--seed", type=int, default=0)

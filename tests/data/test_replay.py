@@ -214,3 +214,73 @@ def test_the_priority_search_reads_only_the_entries_written():
     restored.values = tree.values.clone()
     assert restored.extent == 2_500
     assert FlatPriorityTree(10, "min", torch.float32).extent == 0
+
+
+def test_a_tree_without_host_reads_answers_as_one_with_them():
+    """A GPU's trees (``host_reads=False``, run here on the CPU): tensor-bounded queries stay
+    tensors and equal the float answers, the search over every slot finds what the search over
+    the written extent finds, and an old pickled tree (no such attributes) loads as a CPU one."""
+    import pickle
+
+    from gentlerl.data.prioritized import FlatPriorityTree
+
+    gen = torch.Generator().manual_seed(1)
+    values = torch.rand(300, generator=gen, dtype=torch.float64)
+    for reduce in ("sum", "min"):
+        host = FlatPriorityTree(1_000, reduce, torch.float64)
+        free = FlatPriorityTree(1_000, reduce, torch.float64, host_reads=False)
+        for tree in (host, free):
+            tree[torch.arange(300)] = values
+        assert host.extent == 300 and free.extent == 1_000
+        for left, right in ((0, 300), (17, 211), (0, 1_000)):
+            got = free.query(torch.tensor(left), torch.tensor(right))
+            assert isinstance(got, torch.Tensor) and got.ndim == 0
+            assert float(got) == pytest.approx(host.query(left, right), rel=1e-12)
+        assert free.query(0, 300) == pytest.approx(host.query(0, 300), rel=1e-12)
+    mass = torch.rand(256, generator=gen, dtype=torch.float64) * float(values.sum())
+    assert torch.equal(free_scan := _sum_tree(values, False).scan_lower_bound(mass),
+                       _sum_tree(values, True).scan_lower_bound(mass))  # fmt: skip
+    assert int(free_scan.max()) < 300
+    moved = free.to("cpu")  # a GPU tree read back onto the CPU: host reads, its extent found
+    assert moved.host_reads and moved.extent == 300 and torch.equal(moved.values, free.values)
+    old = FlatPriorityTree(10, "sum", torch.float64)
+    del old.device, old.host_reads
+    restored = pickle.loads(pickle.dumps(old))
+    assert restored.host_reads and restored.device == torch.device("cpu")
+
+
+def _sum_tree(values: torch.Tensor, host_reads: bool):
+    from gentlerl.data.prioritized import FlatPriorityTree
+
+    tree = FlatPriorityTree(1_000, "sum", torch.float64, host_reads=host_reads)
+    tree[torch.arange(len(values))] = values
+    return tree
+
+
+def test_the_sampler_with_trees_that_make_no_host_reads_samples_as_with_them():
+    """TorchRL's sampler logic over trees that answer with tensors (as on a GPU): the same seed
+    draws the same indices and importance weights as over the host-reading trees."""
+    from gentlerl.data.prioritized import FlatPriorityTree
+
+    draws = []
+    for host_reads in (True, False):
+        torch.manual_seed(0)
+        np.random.seed(0)
+        rb = make_replay_buffer(64, 32, n_steps=1, alpha=0.6, beta=0.4)
+        sampler = rb._sampler
+        for name in ("_sum_tree", "_min_tree"):
+            reduce = "sum" if name == "_sum_tree" else "min"
+            tree = FlatPriorityTree(64, reduce, sampler.dtype, host_reads=host_reads)
+            setattr(sampler, name, tree)
+        rb.extend(_trajectory(T=20, terminal_at=19))
+        td = rb[:]
+        td[keys.PRIORITY] = torch.linspace(0.1, 3.0, len(td))
+        td["index"] = torch.arange(len(td))
+        rb.update_tensordict_priority(td)
+        batch = rb.sample()
+        draws.append((batch["index"], batch["priority_weight"]))
+    assert torch.equal(draws[0][0], draws[1][0])
+    torch.testing.assert_close(draws[0][1], draws[1][1])
+    tree_values = (torch.linspace(0.1, 3.0, len(td)) + 1e-8) ** 0.6  # (p + eps)^alpha
+    expected = (tree_values[draws[1][0]] / tree_values.min()) ** -0.4  # (p_i / p_min)^-beta
+    torch.testing.assert_close(draws[1][1], expected.to(draws[1][1].dtype))

@@ -149,6 +149,7 @@ class AgentBuilder:
             alpha=replay.alpha,
             beta=replay.beta,
             n_steps=None,
+            device=self.cfg.learner.device if replay.device == "learner" else "cpu",
         )
         writer = NStepWriter(
             rb, replay.n_steps, self.cfg.learner.gamma, self.reward_keys, window_keys

@@ -151,6 +151,12 @@ class ReplayConfig:
     beta: float = setting(
         0.4, "initial importance-weight exponent, annealed to 1", bounds="[0, 1]", resumable=True
     )
+    device: str = setting(
+        "cpu",
+        "where the learner's replay (transitions and priority trees) lives: cpu, or learner "
+        "(on learner.device: a GPU learner then samples and re-prioritises without the host)",
+        choices=("cpu", "learner"),
+    )
 
 
 @dataclass
@@ -179,7 +185,8 @@ class LearnerConfig:
     device: str = setting(
         "cpu",
         "where the D4PG networks, the reward models and their updates run: cpu, cuda or cuda:N "
-        "(collection and the learner's replay stay on the CPU; the acting actor is a CPU copy)",
+        "(collection stays on the CPU, the replay unless replay.device=learner; the acting actor "
+        "is a CPU copy)",
         resumable=True,
     )
 

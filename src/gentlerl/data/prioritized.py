@@ -9,6 +9,11 @@ reductions and whose prefix-sum search is ``cumsum`` + ``searchsorted`` over the
 so far. Each sample costs O(entries written) in C-speed torch ops (about 1 ms for 1M), no python
 loop: a paper-scale buffer (1M slots) holding its first 25k transitions scans 25k.
 
+On a CUDA storage the trees live on the GPU and TorchRL's own CUDA path samples (its compiled
+CUDA trees do not load either): the trees then make no host read (range queries are masked
+reductions that stay tensors, the search scans every slot); what still waits for the GPU is
+TorchRL's masking of invalid indices in a priority update.
+
 No torchrl wheel on the package registry loads against that torch build (each 0.12.0–0.14.1
 wheel misses torch C++ symbols: 0.14.x was built against torch 2.14, 0.12–0.13 against older
 releases), so TorchRL's ``Failed to import torchrl C++ binaries`` warning, which its sampler logs
@@ -31,16 +36,42 @@ from torchrl.data import PrioritizedSampler
 
 
 class FlatPriorityTree:
-    """The subset of TorchRL's ``Sum/MinSegmentTree`` interface the sampler uses, on a flat tensor."""
+    """The subset of TorchRL's ``Sum/MinSegmentTree`` interface the sampler uses, on a flat tensor.
 
-    def __init__(self, capacity: int, reduce: Literal["sum", "min"], dtype: torch.dtype) -> None:
+    Args:
+        capacity, reduce, dtype: the slots, ``"sum"`` or ``"min"``, the priorities' dtype.
+        device: where the entries live (``.device``, which TorchRL's sampler reads).
+        host_reads: track the highest entry written (an ``int`` read of each write's indices)
+            so that the prefix-sum search stops there, and answer :meth:`query` with a float;
+            default: on the CPU only. Without (a GPU's trees), every search scans all slots and
+            a query with tensor bounds returns a tensor, so nothing waits for the device.
+    """
+
+    def __init__(
+        self,
+        capacity: int,
+        reduce: Literal["sum", "min"],
+        dtype: torch.dtype,
+        device: torch.device | str = "cpu",
+        *,
+        host_reads: bool | None = None,
+    ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
         if reduce not in ("sum", "min"):
             raise ValueError(f"reduce must be 'sum' or 'min', got {reduce!r}")
         self.reduce = reduce
         self.neutral = 0.0 if reduce == "sum" else float("inf")
-        self.values = torch.full((capacity,), self.neutral, dtype=dtype)
+        self.device = torch.device(device)
+        self.host_reads = self.device.type == "cpu" if host_reads is None else host_reads
+        self.values = torch.full((capacity,), self.neutral, dtype=dtype, device=self.device)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """A tree pickled before ``device`` and ``host_reads`` existed (older checkpoints) was a
+        CPU tree that read the host."""
+        state.setdefault("device", torch.device("cpu"))
+        state.setdefault("host_reads", True)
+        self.__dict__.update(state)
 
     @property
     def values(self) -> torch.Tensor:
@@ -50,13 +81,15 @@ class FlatPriorityTree:
     @values.setter
     def values(self, values: torch.Tensor) -> None:
         self._values = values
+        if not self.host_reads:  # every slot, whatever was written
+            self.extent = len(values)
+            return
         written = (values != self.neutral).nonzero()
         #: One past the highest entry written: the prefix-sum search reads no further.
         self.extent = int(written[-1]) + 1 if len(written) else 0
 
-    @staticmethod
-    def _index(index: int | np.ndarray | torch.Tensor) -> torch.Tensor:
-        return torch.as_tensor(index, dtype=torch.long)
+    def _index(self, index: int | np.ndarray | torch.Tensor) -> torch.Tensor:
+        return torch.as_tensor(index, dtype=torch.long, device=self.device)
 
     def __getitem__(self, index: int | np.ndarray | torch.Tensor) -> torch.Tensor:
         return self.values[self._index(index)]
@@ -65,20 +98,32 @@ class FlatPriorityTree:
         self, index: int | np.ndarray | torch.Tensor, value: float | np.ndarray | torch.Tensor
     ) -> None:
         index = self._index(index)
-        self.values[index] = torch.as_tensor(value, dtype=self.values.dtype)
-        if index.numel():
+        self.values[index] = torch.as_tensor(value, dtype=self.values.dtype, device=self.device)
+        if self.host_reads and index.numel():
             self.extent = max(self.extent, int(index.max()) + 1)
 
-    def query(self, left: int, right: int) -> float:
-        """Sum (or min) of the entries in ``[left, right)``."""
-        window = self.values[int(left) : int(right)]
-        return float(window.sum() if self.reduce == "sum" else window.min())
+    def to(self, device: torch.device | str) -> FlatPriorityTree:
+        """This tree's entries on ``device`` (host reads as that device's default)."""
+        tree = FlatPriorityTree(1, self.reduce, self.values.dtype, device)
+        tree.values = self.values.to(tree.device)
+        return tree
+
+    def query(self, left: int | torch.Tensor, right: int | torch.Tensor) -> float | torch.Tensor:
+        """Sum (or min) of the entries in ``[left, right)``: a float, or without
+        :attr:`host_reads` and with tensor bounds a 0-d tensor on the tree's device."""
+        if self.host_reads or not isinstance(left, torch.Tensor):
+            window = self.values[int(left) : int(right)]
+            return float(window.sum() if self.reduce == "sum" else window.min())
+        slot = torch.arange(len(self.values), device=self.device)
+        inside = (slot >= left) & (slot < right)
+        window = torch.where(inside, self.values, self.neutral)
+        return window.sum() if self.reduce == "sum" else window.amin()
 
     def scan_lower_bound(self, mass: np.ndarray | torch.Tensor) -> torch.Tensor:
         """Smallest index whose inclusive prefix sum exceeds each ``mass`` (``extent`` where none
         does among the entries written; the sampler clamps it into the storage)."""
         cumulative = self.values[: self.extent].cumsum(0)
-        mass = torch.as_tensor(mass, dtype=cumulative.dtype)
+        mass = torch.as_tensor(mass, dtype=cumulative.dtype, device=self.device)
         return torch.searchsorted(cumulative, mass, right=True)
 
 
@@ -116,10 +161,17 @@ class TorchPrioritizedSampler(PrioritizedSampler):
             super().__init__(*args, **kwargs)
 
     def _init(self) -> None:
-        if self._device is not None and self._device.type != "cpu":
-            raise ValueError(
-                f"TorchPrioritizedSampler keeps its trees on the CPU, got {self._device}"
-            )
-        self._sum_tree = FlatPriorityTree(self._max_capacity, "sum", self.dtype)
-        self._min_tree = FlatPriorityTree(self._max_capacity, "min", self.dtype)
+        # TorchRL moves the trees to a CUDA storage's device (``_maybe_init_from_storage``).
+        device = self._device if self._device is not None else torch.device("cpu")
+        self._sum_tree = FlatPriorityTree(self._max_capacity, "sum", self.dtype, device)
+        self._min_tree = FlatPriorityTree(self._max_capacity, "min", self.dtype, device)
         self._max_priority = None
+
+    def load_state_dict(self, state_dict: dict[str, Any]) -> None:
+        """TorchRL's, then the trees moved to this sampler's device: a checkpoint is read onto
+        the CPU, and a GPU buffer would otherwise rebuild empty trees at its first sample."""
+        super().load_state_dict(state_dict)
+        device = self._device if self._device is not None else torch.device("cpu")
+        for name in ("_sum_tree", "_min_tree"):
+            if getattr(self, name).device != device:
+                setattr(self, name, getattr(self, name).to(device))

@@ -67,7 +67,8 @@ def make_replay_buffer(
         n_steps, gamma: n-step returns of every key in ``reward_keys`` (Acme D4PG: n = 5, 0.99);
             ``n_steps=None``: the buffer stores what it is given (write through an
             :class:`NStepWriter`, which handles ``[B, T]`` batches and checkpoints its tail).
-        device: storage device.
+        device: where the transitions and the priority trees live (on a GPU the sample and the
+            priority update make no host read: :mod:`gentlerl.data.prioritized`).
 
     Write with ``rb.extend(batch)`` where ``batch`` is ``[T]`` or ``[B, T]`` time-contiguous
     (a collector batch); the last ``n_steps`` of each write wait for the next one.
@@ -80,8 +81,9 @@ def make_replay_buffer(
         raise ValueError(f"gamma must be in [0, 1], got {gamma}")
     if prioritized and not (alpha >= 0 and beta >= 0):
         raise ValueError(f"alpha and beta must be >= 0, got alpha={alpha}, beta={beta}")
+    trees = None if torch.device(device).type == "cpu" else device  # TorchRL's default: CPU
     sampler = (
-        TorchPrioritizedSampler(capacity, alpha=alpha, beta=beta)
+        TorchPrioritizedSampler(capacity, alpha=alpha, beta=beta, device=trees)
         if prioritized
         else RandomSampler()
     )
