@@ -3,8 +3,10 @@ SeedBatchedModelStep: S seeds' steps in one equal S ModelSteps."""
 
 import pytest
 import torch
+from tensordict import TensorDict
 
-from gentlerl.models import PenaltyModel
+from gentlerl import keys
+from gentlerl.models import DynamicsModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.objectives.compile import compile_unavailable
 from gentlerl.rewards.model_step import ModelStep, SeedBatchedModelStep
@@ -91,5 +93,45 @@ def test_seed_batched_model_step_refuses_a_batch_without_its_seeds():
         step(_penalty_batch(0))
     with pytest.raises(ValueError, match="needs at least one loss"):
         SeedBatchedModelStep([], 1e-2)
+    with pytest.raises(TypeError, match=r"needs a loss with a pure losses\(batch, params\)"):
+        SeedBatchedModelStep([torch.nn.Linear(2, 2)], 1e-2)
     with pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"):
         SeedBatchedModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+
+
+def _dynamics_batch(seed):
+    g = torch.Generator().manual_seed(seed)
+    touch = torch.randn(2, 8, 2, 2, generator=g)
+    return TensorDict(
+        {
+            keys.OBSERVATION: torch.randn(2, 8, 3, generator=g),
+            keys.ACTION: torch.randn(2, 8, 2, generator=g),
+            keys.TOUCH: touch,
+            "next": {keys.TOUCH: touch + 0.5 * torch.randn(2, 8, 2, 2, generator=g)},
+        },
+        [2, 8],
+    )
+
+
+def test_seed_batched_dynamics_steps_equal_one_model_step_per_seed():
+    """The dynamics ensemble (one ensemble and one delta normaliser per feature group) too."""
+
+    def losses():
+        return [
+            EnsembleModelLoss(
+                DynamicsModel(3, 2, {keys.TOUCH: (2, 2)}, ensemble_size=2, hidden=(8,), seed=s),
+                name="dynamics",
+            )
+            for s in (0, 1)
+        ]
+
+    singles = [ModelStep(loss, 1e-2) for loss in losses()]
+    batched = SeedBatchedModelStep(losses(), 1e-2)
+    for k in range(2):
+        batches = [_dynamics_batch(10 * k + s) for s in (0, 1)]
+        expected = torch.tensor([step(b.clone()) for step, b in zip(singles, batches, strict=True)])
+        torch.testing.assert_close(batched(torch.stack(batches)), expected, rtol=1e-5, atol=1e-6)
+    for s, single in enumerate(singles):
+        mine = batched.write_back(s).model_params
+        for key, value in single.loss.model_params.items(True, True):
+            torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)

@@ -98,6 +98,11 @@ class SeedBatchedModelStep:
     ) -> None:
         if len(losses) < 1:
             raise ValueError("SeedBatchedModelStep needs at least one loss (one per seed), got 0")
+        if not callable(getattr(losses[0], "losses", None)):
+            raise TypeError(
+                f"SeedBatchedModelStep needs a loss with a pure losses(batch, params) (e.g. "
+                f"EnsembleModelLoss), got {type(losses[0]).__name__}"
+            )
         device = next(losses[0].parameters()).device
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"cudagraphs needs the models on a CUDA device, these are on {device}")
