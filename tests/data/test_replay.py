@@ -219,9 +219,7 @@ def test_the_priority_search_reads_only_the_entries_written():
 def test_a_tree_without_host_reads_answers_as_one_with_them():
     """A GPU's trees (``host_reads=False``, run here on the CPU): tensor-bounded queries stay
     tensors and equal the float answers, the search over every slot finds what the search over
-    the written extent finds, and an old pickled tree (no such attributes) loads as a CPU one."""
-    import pickle
-
+    the written extent finds, and a GPU tree read back onto the CPU reads the host again."""
     from gentlerl.data.prioritized import FlatPriorityTree
 
     gen = torch.Generator().manual_seed(1)
@@ -243,10 +241,6 @@ def test_a_tree_without_host_reads_answers_as_one_with_them():
     assert int(free_scan.max()) < 300
     moved = free.to("cpu")  # a GPU tree read back onto the CPU: host reads, its extent found
     assert moved.host_reads and moved.extent == 300 and torch.equal(moved.values, free.values)
-    old = FlatPriorityTree(10, "sum", torch.float64)
-    del old.device, old.host_reads
-    restored = pickle.loads(pickle.dumps(old))
-    assert restored.host_reads and restored.device == torch.device("cpu")
 
 
 def _sum_tree(values: torch.Tensor, host_reads: bool):

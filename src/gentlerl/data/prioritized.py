@@ -66,13 +66,6 @@ class FlatPriorityTree:
         self.host_reads = self.device.type == "cpu" if host_reads is None else host_reads
         self.values = torch.full((capacity,), self.neutral, dtype=dtype, device=self.device)
 
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        """A tree pickled before ``device`` and ``host_reads`` existed (older checkpoints) was a
-        CPU tree that read the host."""
-        state.setdefault("device", torch.device("cpu"))
-        state.setdefault("host_reads", True)
-        self.__dict__.update(state)
-
     @property
     def values(self) -> torch.Tensor:
         """The ``[capacity]`` entries (the neutral value where none was written)."""
