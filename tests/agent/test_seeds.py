@@ -81,3 +81,32 @@ def test_refuses_a_batch_without_the_seed_dimension():
 def test_cudagraphs_refused_on_cpu():
     with pytest.raises(ValueError, match="needs a CUDA learner, this one is on cpu"):
         SeedBatchedLearner([_loss(0)], cudagraphs=True, **OPTIONS)
+
+
+def test_shared_seeds_act_with_the_batched_weights_and_their_optimisers_get_their_rows():
+    """share=True: each seed's own actor acts with its row of the stack after batched updates
+    (the separate learners' actions, no write_back); optimizer_rows hands each seed's own
+    Adam its row, so that a seed's learner then steps as the separate learner does."""
+    seeds = [0, 1]
+    singles = [Learner(_loss(s), **OPTIONS) for s in seeds]
+    own = [Learner(_loss(s), **OPTIONS) for s in seeds]  # the seeds' own learners, shared
+    batched = SeedBatchedLearner([learner.loss for learner in own], share=True, **OPTIONS)
+    obs = TensorDict({"observation": torch.randn(4, 3)}, [4])
+    for step in range(3):
+        rows = [_batch(16, 10 * step + s) for s in seeds]
+        batched.update(torch.stack([r.clone() for r in rows]))
+        for learner, row in zip(singles, rows, strict=True):
+            learner.update(row)
+    for mine, ref in zip(own, singles, strict=True):
+        act = mine.policy(obs.clone())["action"]
+        torch.testing.assert_close(act, ref.policy(obs.clone())["action"], rtol=1e-5, atol=1e-6)
+    batched.optimizer_rows([learner.optimizer for learner in own])
+    # Adam's moments with step 3, then step 4 on each seed alone: the separate learners' step 4
+    for s, (mine, ref) in enumerate(zip(own, singles, strict=True)):
+        mine.target_updater.counter = ref.target_updater.counter
+        row = _batch(16, 50 + s)
+        mine.update(row.clone())
+        ref.update(row)
+        for key, value in ref.loss.network_params().items(True, True):
+            got = mine.loss.network_params()[key]
+            torch.testing.assert_close(got, value, rtol=1e-5, atol=1e-6)

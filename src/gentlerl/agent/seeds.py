@@ -15,8 +15,8 @@ from collections.abc import Sequence
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torch import nn
 
+from gentlerl.models.stacking import optimizer_rows, share_rows, stack_parameters
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.objectives.compile import compile_step
 
@@ -31,6 +31,9 @@ class SeedBatchedLearner:
         target_update_period: updates between hard target copies (every seed at once).
         compile: ``torch.compile`` the batched losses (the first update compiles them).
         cudagraphs: replay the whole step as one CUDA graph (its Adam capturable); CUDA only.
+        share: make each loss's parameters views of its row of the stack
+            (:func:`~gentlerl.models.stacking.share_rows`): the seeds' own actors then act and
+            evaluate with the updated weights, no :meth:`write_back` needed.
 
     :meth:`update` takes a batch shaped ``[S, B]`` (seed s's transitions in row s) and writes its
     ``[S, B]`` priorities; :meth:`write_back` copies seed s's parameters into ``losses[s]`` (for
@@ -46,6 +49,7 @@ class SeedBatchedLearner:
         target_update_period: int,
         compile: bool = False,
         cudagraphs: bool = False,
+        share: bool = False,
     ) -> None:
         if len(losses) < 1:
             raise ValueError("SeedBatchedLearner needs at least one loss (one per seed), got 0")
@@ -56,10 +60,11 @@ class SeedBatchedLearner:
             raise ValueError(f"learner.cudagraphs needs a CUDA learner, this one is on {device}")
         self.losses, self.num_seeds = list(losses), len(losses)
         self.loss = losses[0]  # its modules run every seed's parameters (vmap)
-        stacked = torch.stack([loss.network_params().data for loss in losses]).clone()
-        self.params = stacked.apply(nn.Parameter, filter_empty=False)
+        self.params = stack_parameters([loss.network_params() for loss in losses])
         for name in ("target_actor", "target_value"):
             self.params[name].apply_(lambda p: p.requires_grad_(False))
+        if share:
+            share_rows(self.params, [loss.network_params() for loss in losses])
         self.optimizer = torch.optim.Adam(
             [
                 {"params": list(self.params["actor"].values(True, True)), "lr": lr_actor},
@@ -106,6 +111,11 @@ class SeedBatchedLearner:
     def _copy_targets(self) -> None:
         self.params["target_actor"].update_(self.params["actor"])
         self.params["target_value"].update_(self.params["value"])
+
+    def optimizer_rows(self, optimizers: Sequence[torch.optim.Optimizer]) -> None:
+        """Each seed's own optimiser (e.g. its :class:`Learner`'s) given its row of this one's
+        state (:func:`~gentlerl.models.stacking.optimizer_rows`), before its checkpoint."""
+        optimizer_rows(self.optimizer, optimizers)
 
     @torch.no_grad()
     def write_back(self, seed: int) -> MultiHeadD4PGLoss:

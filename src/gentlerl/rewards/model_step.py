@@ -18,6 +18,7 @@ from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.objectives import LossModule
 
+from gentlerl.models.stacking import optimizer_rows, share_rows, stack_parameters
 from gentlerl.objectives.compile import compile_step
 
 
@@ -82,6 +83,9 @@ class SeedBatchedModelStep:
     Args:
         losses: one model loss per seed, of one architecture (built under each seed).
         lr, compile, cudagraphs: as :class:`ModelStep`.
+        share: make each loss's ``model_params`` views of its row of the stack
+            (:func:`~gentlerl.models.stacking.share_rows`): the seeds' own reward transforms
+            and target copies then read the updated models, no :meth:`write_back` needed.
 
     Calling it with a batch shaped ``[S, ...]`` (seed s's samples in row s, e.g. ``[S, E, B]``)
     takes one step and returns the ``[S]`` summed losses without a host read;
@@ -95,6 +99,7 @@ class SeedBatchedModelStep:
         *,
         compile: bool = False,
         cudagraphs: bool = False,
+        share: bool = False,
     ) -> None:
         if len(losses) < 1:
             raise ValueError("SeedBatchedModelStep needs at least one loss (one per seed), got 0")
@@ -107,17 +112,9 @@ class SeedBatchedModelStep:
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"cudagraphs needs the models on a CUDA device, these are on {device}")
         self.losses, self.num_seeds, self.loss = list(losses), len(losses), losses[0]
-        trainable = {
-            k if isinstance(k, tuple) else (k,)
-            for k, v in self.loss.model_params.items(True, True)
-            if isinstance(v, nn.Parameter)
-        }
-        stacked = torch.stack([loss.model_params.data for loss in losses]).clone()
-        self.params = stacked.named_apply(
-            lambda key, t: nn.Parameter(t) if key in trainable else t,
-            nested_keys=True,
-            filter_empty=False,
-        )
+        self.params = stack_parameters([loss.model_params for loss in losses])
+        if share:
+            share_rows(self.params, [loss.model_params for loss in losses])
         weights = [v for v in self.params.values(True, True) if isinstance(v, nn.Parameter)]
         self.optimizer = torch.optim.Adam(weights, lr=lr, fused=True, capturable=cudagraphs)
         self._total = compile_step(
@@ -144,6 +141,11 @@ class SeedBatchedModelStep:
                 f"...], got {tuple(batch.batch_size)}"
             )
         return self._step(batch)["loss"]
+
+    def optimizer_rows(self, optimizers: Sequence[torch.optim.Optimizer]) -> None:
+        """Each seed's own optimiser (its :class:`ModelStep`'s) given its row of this one's
+        state (:func:`~gentlerl.models.stacking.optimizer_rows`), before its checkpoint."""
+        optimizer_rows(self.optimizer, optimizers)
 
     @torch.no_grad()
     def write_back(self, seed: int) -> LossModule:
