@@ -17,6 +17,7 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.training import Trainer, load_policy, make_config, train
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EVAL_COLUMNS, EpisodeStats, episode_transforms
+from gentlerl.training.run_eval import keep_best
 from gentlerl.transforms import ImpactPenalty
 from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
@@ -154,7 +155,7 @@ def test_best_policy_ranks_success_then_breaks_then_impact(tmp_path):
 
     def offer(frames, success, broken, impact):
         result = dict(frames=frames, success_rate=success, broken_rate=broken)
-        trainer._keep_best({**result, "max_impact_mean": impact, "return": 0.0})
+        keep_best(trainer, {**result, "max_impact_mean": impact, "return": 0.0})
         return torch.load(path, weights_only=False)["eval"]["frames"]
 
     assert offer(1, 0.5, 0.0, 1.0) == 1

@@ -189,27 +189,34 @@ class IntrinsicRewards(Rescoring):
             touch_grid = (keys.TOUCH_GRID, ("next", keys.TOUCH_GRID))
             self.buffer.extend(batch.exclude(*touch_grid, "collector").reshape(-1))
 
-    def update(self, num_updates: int | None = None) -> dict[str, float]:
-        """One gradient step of every model, then :meth:`step`; returns ``model_<name>`` losses.
-
-        ``num_updates``: the count including this update (default: one more than the last);
-        ``reward_delay`` and the target periods are counted in these updates.
-        """
+    def model_batches(self) -> dict[str, TensorDictBase]:
+        """Each model's training batch for one update, from the models' buffer: ``[E, B]`` for
+        an ensemble (a bootstrap batch per member), ``[B]`` otherwise (``B``:
+        ``model_batch_size``). :meth:`update` steps each model on its batch; a seed group
+        (:mod:`gentlerl.training.seed_group`) stacks the seeds' batches into one step."""
         if self.buffer is not None and len(self.buffer) == 0:
             raise RuntimeError(
                 "IntrinsicRewards.update() before any extend(): the models have no transition to "
                 "learn from (extend() each collected, transformed batch first)"
             )
         self._check_rescored()
-        metrics = {}
-        b = self.settings.model_batch_size
+        b, batches = self.settings.model_batch_size, {}
         for name, loss in self.losses.items():
             if isinstance(loss, EnsembleModelLoss):
                 e = loss.ensemble_size
-                batch = self.buffer.sample(e * b).reshape(e, b)  # a bootstrap batch per member
+                batches[name] = self.buffer.sample(e * b).reshape(e, b)
             else:
-                batch = self.buffer.sample(b)
-            metrics[f"model_{name}"] = self._steps[name](batch)
+                batches[name] = self.buffer.sample(b)
+        return batches
+
+    def update(self, num_updates: int | None = None) -> dict[str, float]:
+        """One gradient step of every model, then :meth:`step`; returns ``model_<name>`` losses.
+
+        ``num_updates``: the count including this update (default: one more than the last);
+        ``reward_delay`` and the target periods are counted in these updates.
+        """
+        batches = self.model_batches()
+        metrics = {f"model_{name}": self._steps[name](batch) for name, batch in batches.items()}
         self.step(num_updates)
         return metrics
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -20,11 +21,10 @@ from tensordict import TensorDictBase
 from torchrl import timeit
 from torchrl.envs import EnvBase
 
-from gentlerl import keys
 from gentlerl.config.layout import RunLayout
 from gentlerl.distributed.cluster import join_cluster
 from gentlerl.files import write_atomic
-from gentlerl.training import guards, run_state
+from gentlerl.training import guards, run_eval, run_state
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
@@ -36,16 +36,25 @@ from gentlerl.training.builders import (
     prepare_process,
     write_config,
 )
-from gentlerl.training.checkpoint import (
-    remove_stale_temp_files,
-    save_checkpoint,
-)
+from gentlerl.training.checkpoint import remove_stale_temp_files, save_checkpoint
 from gentlerl.training.config import TrainConfig, validate
-from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.env_probe import probe_env
-from gentlerl.training.evaluation import evaluate, rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
+
+
+@dataclass
+class LoopPass:
+    """One pass of the loop: what it collects from and logs to, its clocks and pending logs."""
+
+    collector: Any
+    logger: RunLogger
+    eval_env: Any
+    progress: Progress
+    wall: float
+    next_sync: int
+    start: float = field(default_factory=time.perf_counter)
+    pending: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
 
 
 class Trainer:
@@ -79,17 +88,27 @@ class Trainer:
     def run(self) -> dict[str, float]:
         """Collect up to ``collector.total_frames``, evaluate the last actor, write ``DONE``;
         a finished run is not run again (its final evaluation is returned)."""
-        cfg = self.cfg
+        finished, logger, eval_env = self.open()
+        if finished is not None:
+            return finished
+        if self.cfg.collector.total_frames > self.counters["frames"]:
+            self._collect(logger, eval_env)
+        return self.close(logger, eval_env)
+
+    def open(self) -> tuple[dict[str, float] | None, Any, Any]:
+        """Resume (a finished run: its final evaluation, nothing opened), then the logger and
+        the evaluation env."""
         remove_stale_temp_files(self.layout.root)
         finished = self._resume()
         if finished is not None:
-            return finished
-        logger = make_logger(cfg, write_config(cfg, self.layout))
+            return finished, None, None
+        logger = make_logger(self.cfg, write_config(self.cfg, self.layout))
         logger.truncate_after(self.counters["frames"])
-        eval_env = make_run_eval_env(cfg, self.env_factory)
-        if cfg.collector.total_frames > self.counters["frames"]:
-            self._collect(logger, eval_env)
-        summary = self._final_evaluation(logger, eval_env)
+        return None, logger, make_run_eval_env(self.cfg, self.env_factory)
+
+    def close(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+        """The final evaluation, the checkpoint and ``DONE``; closes what :meth:`open` opened."""
+        summary = run_eval.final_evaluation(self, logger, eval_env)
         self.save()
         write_atomic(self.layout.done, "done\n")
         logger.close()
@@ -108,9 +127,13 @@ class Trainer:
             guards.record_config_changes(self.layout.root, state, self.cfg.to_dict())
         return finished
 
-    def _collect(self, logger: RunLogger, eval_env: Any) -> None:
+    def make_collector(self) -> Any:
+        """The run's collector, acting with the learner's policy, from the frames so far."""
         policy, frames = self.builder.make_policy(self.learner), self.counters["frames"]
-        collector = make_run_collector(self.cfg, self.env_factory, policy, frames)
+        return make_run_collector(self.cfg, self.env_factory, policy, frames)
+
+    def _collect(self, logger: RunLogger, eval_env: Any) -> None:
+        collector = self.make_collector()
         try:
             self._loop(collector, logger, eval_env)
         except ChildProcessError as err:  # a collector process was killed: the run can go on
@@ -120,35 +143,49 @@ class Trainer:
 
     def _loop(self, collector: Any, logger: RunLogger, eval_env: Any) -> None:
         """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
-        cfg, c = self.cfg, self.counters
-        next_sync = c["updates"] + cfg.collector.weight_sync_every
-        progress = Progress(
-            self.rewards.reward_keys, cfg.collector.total_frames, c["frames"], cfg.logging.progress,
-            force_unit(cfg.env.force_scale),
-        )  # fmt: skip
-        pending: dict[str, list[float]] = defaultdict(list)
-        start, wall = time.perf_counter(), self.wall_s  # resumed: the time before it too
+        p = self.start_pass(collector, logger, eval_env)
         for batch in collector:
-            batch = self._rewarded(batch)
-            episodes = progress.finished_episodes(batch)
-            for episode in episodes:
-                logger.log({f"episode/{k}": v for k, v in episode.items()}, c["frames"])
-            self._steer(episodes, logger, eval_env)
-            self._store(batch)
-            if self._learning():
-                self._earn_updates(batch.numel(), pending)
-                self.learner.sync_policy()  # the acting copy of a GPU learner's actor
-                next_sync = self._sync_policy(collector, next_sync)
-            self._log_training(logger, pending)
-            self.wall_s = wall + time.perf_counter() - start
-            fps = progress.env_steps_per_s(c["frames"])
-            logger.log({"train/env_steps_per_s": fps, "train/wall_s": self.wall_s}, c["frames"])
-            if _crossed(c["frames"], batch.numel(), cfg.logging.eval_every_frames):
-                self._evaluate(logger, eval_env)
-            if _crossed(c["frames"], batch.numel(), cfg.logging.checkpoint_every_frames):
-                self.save()
-            progress.advance(batch.numel(), self.eval_history)
-        progress.close()
+            frames = self.take(batch, p)
+            if self.learning():
+                self._earn_updates(frames, p.pending)
+            self.finish_batch(frames, p)
+        p.progress.close()
+
+    def start_pass(self, collector: Any, logger: RunLogger, eval_env: Any) -> LoopPass:
+        """The state of one pass of the loop over ``collector``."""
+        cfg = self.cfg
+        progress = Progress(
+            self.rewards.reward_keys, cfg.collector.total_frames, self.counters["frames"],
+            cfg.logging.progress, force_unit(cfg.env.force_scale),
+        )  # fmt: skip
+        next_sync = self.counters["updates"] + cfg.collector.weight_sync_every
+        return LoopPass(collector, logger, eval_env, progress, self.wall_s, next_sync)
+
+    def take(self, batch: TensorDictBase, p: LoopPass) -> int:
+        """A collected batch rewarded, its episodes logged (and steered on), stored; its frames."""
+        batch = self._rewarded(batch)
+        episodes = p.progress.finished_episodes(batch)
+        for episode in episodes:
+            p.logger.log({f"episode/{k}": v for k, v in episode.items()}, self.counters["frames"])
+        run_eval.steer(self, episodes, p.logger, p.eval_env)
+        self._store(batch)
+        return batch.numel()
+
+    def finish_batch(self, frames: int, p: LoopPass) -> None:
+        """After a batch's updates: the actors synced, logs, evaluation and checkpoint when due."""
+        cfg, c = self.cfg, self.counters
+        if self.learning():
+            self.learner.sync_policy()  # the acting copy of a GPU learner's actor
+            p.next_sync = self._sync_policy(p.collector, p.next_sync)
+        self._log_training(p.logger, p.pending)
+        self.wall_s = p.wall + time.perf_counter() - p.start
+        fps = p.progress.env_steps_per_s(c["frames"])
+        p.logger.log({"train/env_steps_per_s": fps, "train/wall_s": self.wall_s}, c["frames"])
+        if _crossed(c["frames"], frames, cfg.logging.eval_every_frames):
+            run_eval.evaluate_run(self, p.logger, p.eval_env)
+        if _crossed(c["frames"], frames, cfg.logging.checkpoint_every_frames):
+            self.save()
+        p.progress.advance(frames, self.eval_history)
 
     def _rewarded(self, batch: TensorDictBase) -> TensorDictBase:
         """The batch with every reward component (checked finite), counted in ``frames``."""
@@ -158,21 +195,6 @@ class Trainer:
         self.counters["frames"] += batch.numel()
         return batch
 
-    def _steer(self, episodes: list[dict[str, float]], logger: RunLogger, eval_env: Any) -> None:
-        """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``),
-        or with ``multiplier_episodes`` after that many noise-free episodes at each PID step."""
-        multiplier, frames = self.rewards.multiplier, self.counters["frames"]
-        if multiplier is None or not self._learning():
-            return  # the policy's episodes only: not those of the first random actions
-        if not episodes and multiplier.period is None:
-            return  # stepped per episode
-        if n := self.cfg.gentleness.multiplier_episodes:  # the deployed policy's cost
-            policy, horizon = self.learner.policy, self.builder.horizon
-            episodes = evaluate(eval_env, policy, n, horizon)[1] if multiplier.due(frames) else []
-        weight = multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
-        self.learner.loss.set_head_weight(keys.PENALTY, weight)
-        logger.log({f"train/{k}": v for k, v in multiplier.scalars().items()}, frames)
-
     def _store(self, batch: TensorDictBase) -> None:
         """The models' buffer (1-step transitions) and the learner's (through the n-step writer)."""
         batch = batch.exclude(*EPISODE_KEYS, *[("next", k) for k in EPISODE_KEYS])
@@ -180,7 +202,7 @@ class Trainer:
         rewards = [("next", k) for k in self.rewards.reward_keys]
         self.writer.extend(batch.select(*AGENT_KEYS, *rewards))
 
-    def _learning(self) -> bool:
+    def learning(self) -> bool:
         """Past ``init_random_frames``, with a batch's worth of transitions to sample."""
         c, cfg = self.counters, self.cfg
         return (
@@ -215,6 +237,12 @@ class Trainer:
             self.rb.update_tensordict_priority(batch)
             if self.beta_schedule is not None:
                 self.beta_schedule.step()
+        return self.count_update(metrics, out, batch)
+
+    def count_update(
+        self, metrics: dict[str, float], out: TensorDictBase, batch: TensorDictBase
+    ) -> dict[str, float]:
+        """An update counted: its losses and batch rewards read into ``metrics``, checked."""
         self.counters["updates"] += 1
         metrics.update({k: v.item() for k, v in out.items()})
         for key in self.rewards.reward_keys:
@@ -235,39 +263,7 @@ class Trainer:
         pending.clear()
         timeit.erase()
 
-    def _final_evaluation(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
-        """The last batch's evaluation where it was at the final frame, else a new one."""
-        last = self.eval_history[-1] if self.eval_history else {"frames": -1}
-        if last["frames"] == self.counters["frames"]:
-            return {k: v for k, v in last.items() if k != "frames"}
-        return self._evaluate(logger, eval_env)
-
-    def _evaluate(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
-        episodes = self.cfg.logging.eval_episodes
-        rollouts = rollout_episodes(eval_env, self.learner.policy, episodes, self.builder.horizon)
-        summary, per_episode = summarize_episodes(rollouts)
-        frames = self.counters["frames"]
-        logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
-        # The same episodes: each critic head's predicted Q against its realised return.
-        loss, gamma = self.learner.loss, self.cfg.learner.gamma
-        logger.log(evaluation_scalars(loss, self.rewards.transform, rollouts, gamma), frames)
-        logger.log_eval_episodes(frames, per_episode)
-        self.eval_history.append({"frames": frames, **summary})
-        self._keep_best({"frames": frames, **summary})
-        return summary
-
-    def _keep_best(self, result: dict[str, float]) -> None:
-        """Save the actor to ``best_policy.pt`` when this evaluation beats every earlier one
-        (:func:`~gentlerl.training.evaluation.rank`): DDPG can lose a solved task later on."""
-        if self.best_eval is not None and rank(result) <= rank(self.best_eval):
-            return
-        self.best_eval = dict(result)
-        save_checkpoint(self.layout.best_policy, {**self._policy_state(), "eval": self.best_eval})
-
     # -- state ---------------------------------------------------------------------------
-    def _policy_state(self) -> dict[str, Any]:
-        return run_state.policy_state(self)
-
     def state_dict(self) -> dict[str, Any]:
         """Everything a resumed run needs (:func:`~gentlerl.training.run_state.trainer_state`)."""
         return run_state.trainer_state(self)
