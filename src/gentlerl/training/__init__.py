@@ -18,5 +18,6 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "summarize",
         ),
         "gentlerl.training.loop": ("Trainer", "train"),
+        "gentlerl.training.seed_group": ("SeedGroup", "train_seeds"),
     },
 )

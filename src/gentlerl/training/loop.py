@@ -55,6 +55,7 @@ class LoopPass:
     next_sync: int
     start: float = field(default_factory=time.perf_counter)
     pending: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    erase_timer: bool = True  # a seed group times its updates once for every seed
 
 
 class Trainer:
@@ -177,13 +178,13 @@ class Trainer:
         if self.learning():
             self.learner.sync_policy()  # the acting copy of a GPU learner's actor
             p.next_sync = self._sync_policy(p.collector, p.next_sync)
-        self._log_training(p.logger, p.pending)
+        self._log_training(p)
         self.wall_s = p.wall + time.perf_counter() - p.start
         fps = p.progress.env_steps_per_s(c["frames"])
         p.logger.log({"train/env_steps_per_s": fps, "train/wall_s": self.wall_s}, c["frames"])
-        if _crossed(c["frames"], frames, cfg.logging.eval_every_frames):
+        if crossed(c["frames"], frames, cfg.logging.eval_every_frames):
             run_eval.evaluate_run(self, p.logger, p.eval_env)
-        if _crossed(c["frames"], frames, cfg.logging.checkpoint_every_frames):
+        if crossed(c["frames"], frames, cfg.logging.checkpoint_every_frames):
             self.save()
         p.progress.advance(frames, self.eval_history)
 
@@ -251,17 +252,19 @@ class Trainer:
         guards.stop_if_not_finite(metrics, where, self.layout.checkpoint)
         return metrics
 
-    def _log_training(self, logger: RunLogger, pending: dict[str, list[float]]) -> None:
+    def _log_training(self, p: LoopPass) -> None:
         """The update metrics averaged over every ``log_every_updates`` updates, and their speed."""
+        pending = p.pending
         if not pending or len(pending["loss_value"]) < self.cfg.logging.log_every_updates:
             return
         scalars = {f"train/{k}": float(np.mean(v)) for k, v in pending.items()}
         scalars["train/intrinsic_on"] = float(self.rewards.intrinsic_on)
         # Model + learner updates per second of update time (collection excluded).
         scalars["train/updates_per_s"] = 1.0 / max(timeit.todict()["update"], 1e-9)
-        logger.log(scalars, self.counters["frames"])
+        p.logger.log(scalars, self.counters["frames"])
         pending.clear()
-        timeit.erase()
+        if p.erase_timer:
+            timeit.erase()
 
     # -- state ---------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
@@ -275,7 +278,7 @@ class Trainer:
         save_checkpoint(self.layout.checkpoint, self.state_dict())
 
 
-def _crossed(frames: int, batch_frames: int, every: int) -> bool:
+def crossed(frames: int, batch_frames: int, every: int) -> bool:
     """Whether the last batch reached a multiple of ``every`` frames."""
     return frames // every > (frames - batch_frames) // every
 

@@ -1,0 +1,94 @@
+"""SeedGroup: several seeds of one run in one process, their updates one batched step."""
+
+import pytest
+import torch
+
+from gentlerl.training import train
+from gentlerl.training.seed_group import SeedGroup, group_problems, train_seeds
+from tests.helpers import read_scalar, tiny_config, toy_env
+
+NAMES = (
+    "train/loss_value",
+    "train/loss_actor",
+    "train/model_penalty",
+    "eval/return",
+    "eval/max_impact_mean",
+)
+
+
+def _group(root, seeds=(0, 1), **overrides):
+    return [tiny_config(root / f"seed{s}", seed=s, **overrides) for s in seeds]
+
+
+@pytest.fixture(scope="module")
+def group_runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("group")
+    group = SeedGroup(_group(root, total_frames=600), toy_env)
+    summaries = group.run()
+    return root, group, summaries
+
+
+def test_each_seed_is_a_finished_run_of_its_own_that_learned(group_runs):
+    root, group, summaries = group_runs
+    assert len(summaries) == 2 and all("success_rate" in s for s in summaries)
+    for s in (0, 1):
+        assert (root / f"seed{s}" / "DONE").exists()
+        losses = read_scalar(root / f"seed{s}", "train/loss_value")
+        assert len(losses) == 4  # 0.5 updates per frame after 200 random: 200 updates, every 50
+    first = [v for _, v in read_scalar(root / "seed0", "train/loss_value")]
+    other = [v for _, v in read_scalar(root / "seed1", "train/loss_value")]
+    assert first != other  # two seeds, not one twice
+
+
+def test_each_seeds_actor_is_its_row_of_the_batched_learner(group_runs):
+    """The saved policy of seed s acts with row s of the stacked parameters (shared, no copy)."""
+    root, group, _ = group_runs
+    for s in (0, 1):
+        saved = torch.load(root / f"seed{s}" / "checkpoint.pt", weights_only=False)["actor"]
+        rows = list(group.learner.params["actor"][s].values(True, True))
+        assert len(rows) == len(saved) > 0
+        for value in rows:
+            assert any(v.shape == value.shape and torch.equal(v, value) for v in saved.values())
+    one, two = (group.learner.params["actor"][s] for s in (0, 1))
+    assert not all(
+        torch.equal(a, b)
+        for a, b in zip(one.values(True, True), two.values(True, True), strict=True)
+    )
+
+
+def test_a_group_reproduces_itself(group_runs, tmp_path):
+    root, _, _ = group_runs
+    train_seeds(_group(tmp_path, total_frames=600), toy_env)
+    for s in (0, 1):
+        for name in NAMES:
+            again = read_scalar(tmp_path / f"seed{s}", name)
+            assert again == read_scalar(root / f"seed{s}", name), (s, name)
+
+
+def test_a_seeds_checkpoint_resumes_as_a_run_of_its_own(group_runs, tmp_path):
+    """Its optimisers hold its rows of the batched Adam: it goes on alone to 800 frames."""
+    root, _, _ = group_runs
+    import shutil
+
+    shutil.copytree(root / "seed1", tmp_path / "seed1")
+    (tmp_path / "seed1" / "DONE").unlink()
+    state = torch.load(tmp_path / "seed1" / "checkpoint.pt", weights_only=False)
+    moments = state["learner"]["optimizer"]["state"]
+    assert moments and all(m["exp_avg"].abs().sum() > 0 for m in moments.values())
+    cfg = tiny_config(tmp_path / "seed1", seed=1, total_frames=800, resume=True)
+    train(cfg, toy_env)
+    assert read_scalar(tmp_path / "seed1", "train/loss_value")[-1][0] == 800
+
+
+def test_a_group_is_refused_in_one_line_before_any_run(tmp_path):
+    other = _group(tmp_path, seeds=(0,))[0]
+    lr = tiny_config(tmp_path / "b", seed=1, learner={"lr_actor": 1e-3})
+    assert group_problems([other, lr]) == ["seed 1's config differs from seed 0's in ['learner']"]
+    same_dir = [other, tiny_config(tmp_path / "seed0", seed=1)]
+    assert "each seed needs its own run_dir" in group_problems(same_dir)[0]
+    steered = _group(tmp_path, tolerance=2.0, multiplier="pid")
+    with pytest.raises(ValueError, match="a seed group batches one penalty weight"):
+        SeedGroup(steered, toy_env)
+    assert not any(tmp_path.glob("seed*/checkpoint.pt"))
+    with pytest.raises(ValueError, match="needs at least one config"):
+        SeedGroup([], toy_env)
