@@ -25,17 +25,18 @@ def stack_parameters(per_seed: Sequence[TensorDictBase]) -> TensorDictBase:
     target copies marked frozen stay parameters without gradient)."""
     if not per_seed:
         raise ValueError("stack_parameters needs at least one seed's parameters, got 0")
-    trainable = {
-        k if isinstance(k, tuple) else (k,)
-        for k, v in per_seed[0].items(True, True)
-        if isinstance(v, nn.Parameter)
-    }
+    trainable = {_path(k) for k, v in per_seed[0].items(True, True) if isinstance(v, nn.Parameter)}
     stacked = torch.stack([td.data for td in per_seed]).clone()
     return stacked.named_apply(
-        lambda key, t: nn.Parameter(t) if key in trainable else t,
+        lambda key, t: nn.Parameter(t) if _path(key) in trainable else t,
         nested_keys=True,
         filter_empty=False,
     )
+
+
+def _path(key: str | tuple[str, ...]) -> tuple[str, ...]:
+    """A tensordict key as a tuple (a top-level key comes as a string)."""
+    return (key,) if isinstance(key, str) else key
 
 
 @torch.no_grad()

@@ -1,0 +1,64 @@
+"""models.stacking: seeds' parameters stacked, shared row by row, the batched Adam's rows."""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torch import nn
+
+from gentlerl.models.stacking import optimizer_rows, share_rows, stack_parameters
+
+
+def _module(seed):
+    torch.manual_seed(seed)
+    module = nn.Linear(3, 2)
+    module.register_buffer("count", torch.tensor(float(seed)))
+    return module
+
+
+def test_stack_marks_weights_as_parameters_and_shared_rows_see_the_stacks_updates():
+    modules = [_module(s) for s in (0, 1, 2)]
+    own = [TensorDict.from_module(m, as_module=True) for m in modules]  # as a loss holds them
+    stacked = stack_parameters(own)
+    assert stacked["weight"].shape == (3, 2, 3) and isinstance(stacked["weight"], nn.Parameter)
+    assert not isinstance(stacked["count"], nn.Parameter)
+    torch.testing.assert_close(stacked["weight"][1], modules[1].weight)
+    share_rows(stacked, own)
+    with torch.no_grad():
+        stacked["weight"].add_(1.0)
+        stacked["count"].mul_(10.0)
+    x = torch.ones(1, 3)
+    for s, m in enumerate(modules):  # the modules act with the stack's rows, no copy
+        torch.testing.assert_close(m(x), x @ stacked["weight"][s].T + stacked["bias"][s])
+        assert float(own[s]["count"]) == 10.0 * s  # what a loss reads through to_module
+    with pytest.raises(ValueError, match="share_rows: 2 seeds for a stack of 3 rows"):
+        share_rows(stacked, own[:2])
+    with pytest.raises(ValueError, match="needs at least one seed's parameters"):
+        stack_parameters([])
+
+
+def test_each_seeds_optimiser_gets_its_row_of_the_batched_adam():
+    """A seed's Adam given its row steps as if it had taken the batched steps alone."""
+    batched_param = nn.Parameter(torch.zeros(2, 4))
+    batched = torch.optim.Adam([batched_param], lr=0.1)
+    grads = torch.tensor([[1.0, 2.0, 3.0, 4.0], [-1.0, 0.5, 0.0, 2.0]])
+    singles, params = [], []
+    for s in range(2):
+        params.append(nn.Parameter(torch.zeros(4)))
+        singles.append(torch.optim.Adam([params[s]], lr=0.1))
+    alone = [nn.Parameter(torch.zeros(4)) for _ in range(2)]
+    alone_opt = [torch.optim.Adam([p], lr=0.1) for p in alone]
+    for _ in range(3):
+        batched_param.grad = grads.clone()
+        batched.step()
+        for s in range(2):
+            alone[s].grad = grads[s].clone()
+            alone_opt[s].step()
+    optimizer_rows(batched, singles)
+    for s in range(2):
+        with torch.no_grad():
+            params[s].copy_(batched_param[s])
+        for opt, p in ((singles[s], params[s]), (alone_opt[s], alone[s])):
+            p.grad = grads[s].clone()
+            opt.step()
+        torch.testing.assert_close(params[s], alone[s])
+        assert float(singles[s].state[params[s]]["step"]) == 4.0
