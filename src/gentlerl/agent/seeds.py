@@ -35,9 +35,10 @@ class SeedBatchedLearner:
             (:func:`~gentlerl.models.stacking.share_rows`): the seeds' own actors then act and
             evaluate with the updated weights, no :meth:`write_back` needed.
 
-    :meth:`update` takes a batch shaped ``[S, B]`` (seed s's transitions in row s) and writes its
-    ``[S, B]`` priorities; :meth:`write_back` copies seed s's parameters into ``losses[s]`` (for
-    its actor, evaluation or checkpoint).
+    :meth:`update` takes a batch shaped ``[S, B]`` (seed s's transitions in row s, on any device:
+    it is moved to the learners') and writes its ``[S, B]`` priorities where the batch is;
+    :meth:`write_back` copies seed s's parameters into ``losses[s]`` (for its actor, evaluation
+    or checkpoint; not needed with ``share``).
     """
 
     def __init__(
@@ -58,7 +59,7 @@ class SeedBatchedLearner:
         device = next(losses[0].parameters()).device
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"learner.cudagraphs needs a CUDA learner, this one is on {device}")
-        self.losses, self.num_seeds = list(losses), len(losses)
+        self.losses, self.num_seeds, self.device = list(losses), len(losses), device
         self.loss = losses[0]  # its modules run every seed's parameters (vmap)
         self.params = stack_parameters([loss.network_params() for loss in losses])
         for name in ("target_actor", "target_value"):
@@ -100,8 +101,10 @@ class SeedBatchedLearner:
                 f"a seed-batched update needs a batch shaped [num_seeds={self.num_seeds}, B], "
                 f"got {tuple(batch.batch_size)}"
             )
-        out = self._step(batch.select(*self._in_keys, strict=False))
-        batch.set(self._priority_key, out.pop(self._priority_key), inplace=True)
+        inputs = batch.select(*self._in_keys, strict=False)
+        home = batch.device or inputs.get(self._in_keys[0]).device  # where the replays are
+        out = self._step(inputs.to(self.device, non_blocking=True))
+        batch.set(self._priority_key, out.pop(self._priority_key).to(home), inplace=True)
         self.counter += 1
         if self.counter % self.target_update_period == 0:
             self._copy_targets()
