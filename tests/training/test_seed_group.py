@@ -86,6 +86,8 @@ def test_a_group_is_refused_in_one_line_before_any_run(tmp_path):
     assert group_problems([other, lr]) == ["seed 1's config differs from seed 0's in ['learner']"]
     same_dir = [other, tiny_config(tmp_path / "seed0", seed=1)]
     assert "each seed needs its own run_dir" in group_problems(same_dir)[0]
+    icm = _group(tmp_path, variant="r+icm")
+    assert "learns an ICM model, which a seed group does not batch" in group_problems(icm)[0]
     steered = _group(tmp_path, tolerance=2.0, multiplier="pid")
     with pytest.raises(ValueError, match="a seed group batches one penalty weight"):
         SeedGroup(steered, toy_env)

@@ -26,6 +26,7 @@ from torchrl import timeit
 
 from gentlerl.agent.seeds import SeedBatchedLearner
 from gentlerl.rewards.model_step import SeedBatchedModelStep
+from gentlerl.rewards.variants import COMPONENTS, reward_keys
 from gentlerl.training.builders import EnvFactory
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.loop import LoopPass, Trainer, crossed
@@ -51,6 +52,12 @@ def group_problems(cfgs: Sequence[TrainConfig]) -> list[str]:
         values = [str(getattr(cfg, name)) for cfg in cfgs]
         if len(set(values)) != len(values):
             problems.append(f"each seed needs its own {name}, got {values}")
+    models = {COMPONENTS[key].model for key in reward_keys(cfgs[0].variant)}
+    if "icm" in models:
+        problems.append(
+            f"variant={cfgs[0].variant!r} learns an ICM model, which a seed group does not batch "
+            "(the penalty and dynamics ensembles only); run its seeds one by one"
+        )
     if cfgs[0].gentleness.multiplier != "none":
         problems.append(
             f"gentleness.multiplier={cfgs[0].gentleness.multiplier!r}: a seed group batches one "
