@@ -58,7 +58,7 @@ fi
 if [[ " $SECTIONS " == *" learner "* ]]; then
   echo "=== learner" >>"$LOG"
   run "${LEARNER_LIMIT:-240}" learner "$PY" benchmarks/learner_graphs.py --device cuda --scale paper --seeds 1 5 --models \
-    --modes ${LEARNER_MODES:-eager cudagraphs compile+cudagraphs compile} --min-time 1.5 --json "$OUT_DIR/learner.json"
+    --modes ${LEARNER_MODES:-eager cudagraphs compile+cudagraphs} --min-time 1.5 --json "$OUT_DIR/learner.json"
 fi
 if [[ " $SECTIONS " == *" replay "* ]]; then
   echo "=== replay" >>"$LOG"
