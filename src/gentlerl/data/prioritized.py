@@ -155,7 +155,7 @@ class TorchPrioritizedSampler(PrioritizedSampler):
 
     def _init(self) -> None:
         # TorchRL moves the trees to a CUDA storage's device (``_maybe_init_from_storage``).
-        device = self._device if self._device is not None else torch.device("cpu")
+        device = self._trees_device
         self._sum_tree = FlatPriorityTree(self._max_capacity, "sum", self.dtype, device)
         self._min_tree = FlatPriorityTree(self._max_capacity, "min", self.dtype, device)
         self._max_priority = None
@@ -164,7 +164,11 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         """TorchRL's, then the trees moved to this sampler's device: a checkpoint is read onto
         the CPU, and a GPU buffer would otherwise rebuild empty trees at its first sample."""
         super().load_state_dict(state_dict)
-        device = self._device if self._device is not None else torch.device("cpu")
         for name in ("_sum_tree", "_min_tree"):
-            if getattr(self, name).device != device:
-                setattr(self, name, getattr(self, name).to(device))
+            if getattr(self, name).device != self._trees_device:
+                setattr(self, name, getattr(self, name).to(self._trees_device))
+
+    @property
+    def _trees_device(self) -> torch.device:
+        """Where the trees belong: the sampler's device (a CUDA storage's), else the CPU."""
+        return self._device if self._device is not None else torch.device("cpu")

@@ -67,8 +67,8 @@ def make_replay_buffer(
         n_steps, gamma: n-step returns of every key in ``reward_keys`` (Acme D4PG: n = 5, 0.99);
             ``n_steps=None``: the buffer stores what it is given (write through an
             :class:`NStepWriter`, which handles ``[B, T]`` batches and checkpoints its tail).
-        device: where the transitions and the priority trees live (on a GPU the sample and the
-            priority update make no host read: :mod:`gentlerl.data.prioritized`).
+        device: where the transitions and the priority trees live (on a GPU the trees make no
+            host read: :mod:`gentlerl.data.prioritized`).
 
     Write with ``rb.extend(batch)`` where ``batch`` is ``[T]`` or ``[B, T]`` time-contiguous
     (a collector batch); the last ``n_steps`` of each write wait for the next one.
