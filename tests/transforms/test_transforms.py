@@ -339,7 +339,9 @@ def test_penalty_surprise_reads_the_model_on_penalty_rows_only(monkeypatch):
     assert 0 < int((penalty < 0).sum()) < 24
     seen = []
     predict = surprise.predict
-    monkeypatch.setattr(surprise, "predict", lambda td: seen.append(td.numel()) or predict(td))
+    monkeypatch.setattr(
+        surprise, "predict", lambda td, params=None: seen.append(td.numel()) or predict(td, params)
+    )
     rsp = surprise(batch)["next", keys.PENALTY_SURPRISE]
     assert rsp.shape == (4, 6, 1) and seen == [int((penalty < 0).sum())]
     mean, var = stack.losses["penalty"].predict_target(batch)

@@ -9,7 +9,13 @@ from gentlerl.data.replay import (
     make_nstep_transform,
     make_replay_buffer,
 )
-from gentlerl.data.windows import WINDOW, nstep_return, nstep_windows, rescore_windows
+from gentlerl.data.windows import (
+    WINDOW,
+    contact_step_sum,
+    nstep_return,
+    nstep_windows,
+    rescore_windows,
+)
 
 __all__ = [
     "FlatPriorityTree",
@@ -20,6 +26,7 @@ __all__ = [
     "make_model_buffer",
     "make_nstep_transform",
     "make_replay_buffer",
+    "contact_step_sum",
     "nstep_return",
     "nstep_windows",
     "rescore_windows",

@@ -91,9 +91,22 @@ def rescore_windows(
         per_step = t.compute(flat, flat.get("next"))[key].reshape(*window.batch_size, 1)
         per_step = per_step.to(steps.device)  # the models' device -> the batch's
         batch.set(("next", key), nstep_return(per_step, steps, gamma))
-        contact = window.get(("next", t.penalty_key)) < 0
-        counted = torch.arange(window.shape[-1], device=steps.device) < steps.reshape(-1, 1)
-        counted = contact & counted.unsqueeze(-1)
-        if counted.any():  # a batch without contact says nothing about the bonus's size
-            metrics[f"{key}_per_contact_step"] = per_step[counted].mean().item()
+        total, count = contact_step_sum(per_step, window.get(("next", t.penalty_key)), steps)
+        if count > 0:  # a batch without contact says nothing about the bonus's size
+            metrics[f"{key}_per_contact_step"] = (total / count).item()
     return metrics
+
+
+def contact_step_sum(
+    per_step: torch.Tensor, penalty: torch.Tensor, steps_to_next_obs: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The sum of ``per_step`` ``[..., B, n, 1]`` over the window steps that count (the first
+    ``steps_to_next_obs``) and have contact (``penalty`` < 0), and how many there are: ``[...]``
+    each (a NaN reward stays in the sum)."""
+    n = per_step.shape[-2]
+    counted = torch.arange(n, device=per_step.device) < steps_to_next_obs.reshape(
+        *per_step.shape[:-2], 1
+    )
+    counted = (penalty < 0) & counted.unsqueeze(-1)
+    total = torch.where(counted, per_step, torch.zeros((), dtype=per_step.dtype))
+    return total.sum((-3, -2, -1)), counted.sum((-3, -2, -1))

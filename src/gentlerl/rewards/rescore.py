@@ -109,6 +109,13 @@ class Rescoring:
             "n-step batches), or set GentlenessConfig(rescore_surprise=False)"
         )
 
+    def mark_windows_rescored(self) -> None:
+        """Record that this object's :attr:`rescored` rewards were scored again at sampling by a
+        scorer of several seeds' batches at once
+        (:class:`~gentlerl.rewards.seed_rescore.SeedBatchedRescore`), as
+        :meth:`rescore_windows` records it for one."""
+        self._rescored_windows = True
+
     @property
     def rescored(self) -> list[PenaltySurprise]:
         """The rewards scored again at sampling (``settings.rescore_surprise``): penalty surprise."""

@@ -11,8 +11,9 @@ evaluates and is checkpointed with no copy. Before each checkpoint every seed's 
 get their rows of the batched Adam states, so a seed's checkpoint resumes as a run of its own;
 a group itself does not resume (refused).
 
-Per seed, not batched: collection, the replay's sample and priority update, the re-scoring of
-r^sp at sampling (each seed's target penalty model), evaluations. A group's numbers are its own
+The r^sp re-scoring at sampling is one step too (each seed's target penalty model, one vmapped
+forward: :class:`~gentlerl.rewards.seed_rescore.SeedBatchedRescore`). Per seed, not batched:
+collection, the replay's sample and priority update, evaluations. A group's numbers are its own
 (the seeds share the process's random stream) and reproduce themselves for the same seeds.
 """
 
@@ -26,6 +27,7 @@ from torchrl import timeit
 
 from gentlerl.agent.seeds import SeedBatchedLearner
 from gentlerl.rewards.model_step import SeedBatchedModelStep
+from gentlerl.rewards.seed_rescore import SeedBatchedRescore
 from gentlerl.rewards.variants import COMPONENTS, reward_keys
 from gentlerl.training.builders import EnvFactory
 from gentlerl.training.config import TrainConfig
@@ -104,6 +106,7 @@ class SeedGroup:
             )
             for name in self.trainers[0].rewards.losses
         }
+        self.rescore = SeedBatchedRescore([t.rewards for t in self.trainers])
         self._priority_key = self.trainers[0].learner.loss.tensor_keys.priority
 
     def run(self) -> list[dict[str, float]]:
@@ -170,10 +173,9 @@ class SeedGroup:
             for trainer in trainers:
                 trainer.rewards.step(trainer.counters["updates"] + 1)
             batches = [t.rb.sample() for t in trainers]
-            for trainer, seed_metrics, batch in zip(trainers, metrics, batches, strict=True):
-                gamma = trainer.cfg.learner.gamma
-                seed_metrics.update(trainer.rewards.rescore_windows(batch, gamma))
-            stacked = torch.stack(batches)
+            stacked, rescored = self.rescore(batches, trainers[0].cfg.learner.gamma)
+            for seed_metrics, seed_rescored in zip(metrics, rescored, strict=True):
+                seed_metrics.update(seed_rescored)
             out = self.learner.update(stacked)
             priority = stacked.get(self._priority_key)
             for s, (trainer, batch) in enumerate(zip(trainers, batches, strict=True)):
@@ -182,7 +184,7 @@ class SeedGroup:
                 if trainer.beta_schedule is not None:
                     trainer.beta_schedule.step()
         return [
-            trainer.count_update(seed_metrics, out[s], batches[s])
+            trainer.count_update(seed_metrics, out[s], stacked[s])
             for s, (trainer, seed_metrics) in enumerate(zip(trainers, metrics, strict=True))
         ]
 

@@ -158,10 +158,12 @@ class ModelRewardTransform(TransitionTransform):
         self.check_owner()
         return super().forward(tensordict)
 
-    def predict(self, tensordict: TensorDictBase) -> Any:
-        """``model.predict`` (or ``model(...)``) with :attr:`params`, without gradient."""
+    def predict(self, tensordict: TensorDictBase, params: TensorDictBase | None = None) -> Any:
+        """``model.predict`` (or ``model(...)``) with :attr:`params` (or ``params``: e.g. one
+        seed's row of a stack, under ``torch.vmap``), without gradient."""
         self.check_owner()
-        with torch.no_grad(), self.params.to_module(self.model, preserve_module_state=False):
+        params = self.params if params is None else params
+        with torch.no_grad(), params.to_module(self.model, preserve_module_state=False):
             return self.model.predict(tensordict)
 
     def check_owner(self) -> None:
@@ -180,7 +182,11 @@ class ModelRewardTransform(TransitionTransform):
                 "batched env outside its workers, or as IntrinsicRewards.rescore_transform())"
             )
 
+    def gate(self, dtype: torch.dtype) -> torch.Tensor:
+        """What the reward is multiplied by: ``scale`` once :attr:`active`, else 0."""
+        return self.scale * self.active.to(dtype)
+
     def _gate(self, reward: torch.Tensor) -> torch.Tensor:
         # A multiply, not a ``where``: NaN * 0 stays NaN, so a diverged model is seen (and stops
         # training) during the reward delay too, instead of surfacing when the gate opens.
-        return reward * (self.scale * self.active.to(reward.dtype))
+        return reward * self.gate(reward.dtype)

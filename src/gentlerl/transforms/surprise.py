@@ -163,7 +163,7 @@ class PenaltySurprise(ModelRewardTransform):
         nll = gaussian_nll(penalty, mu, sigma2)
         return nll if self.nll_floor is None else nll.clamp_min(self.nll_floor)
 
-    def _normalized(self, curiosity: torch.Tensor, learn: bool) -> torch.Tensor:
+    def normalized(self, curiosity: torch.Tensor, learn: bool) -> torch.Tensor:
         """``curiosity`` in units of its running scale (with :attr:`normalize`); ``learn``: first
         fold this batch's mean magnitude (finite contact rows) into the scale."""
         if not self.normalize:
@@ -182,25 +182,42 @@ class PenaltySurprise(ModelRewardTransform):
             raise KeyError(
                 f"PenaltySurprise needs ('next', {self.penalty_key!r}): append ImpactPenalty first"
             )
-        # Eq. 8 is 0 wherever r^f >= 0, so the model reads only the other rows: contacts (a
-        # minority of a training batch), and rows whose penalty or model input is not finite (so
-        # that NaN still reaches the reward). A diverged model shows on contact rows and in its
-        # own training loss, which the loop checks.
-        inputs = [self.read(tensordict, k) for k in (self.model.obs_key, self.model.action_key)]
-        flat = penalty.reshape(-1)
-        rows = ~(flat >= 0)
-        for x in inputs:
-            rows |= ~torch.isfinite(x.reshape(flat.shape[0], -1)).all(-1)
+        keys = (self.model.obs_key, self.model.action_key)
+        for key in keys:
+            self.read(tensordict, key)  # a missing input named in a clear error
+        model_in, flat = tensordict.select(*keys).reshape(-1), penalty.reshape(-1)
         surprise = torch.zeros_like(flat)
-        index = rows.nonzero().squeeze(-1)
+        index = self.scored_rows(model_in, flat).nonzero().squeeze(-1)
         if index.numel():
-            model_in = tensordict.select(self.model.obs_key, self.model.action_key)
-            mean, var = self.predict(model_in.reshape(-1)[index])
             hit = flat[index].unsqueeze(-1)
-            curiosity = self._normalized(self._curiosity(hit, mean, var), learn=True)
-            values = penalty_surprise(hit, self.nll_scale * curiosity, *self.lam_prime)
-            surprise[index] = values.squeeze(-1)
+            curiosity = self.normalized(self.curiosity(model_in[index], hit), learn=True)
+            surprise[index] = self.surprise(hit, curiosity).squeeze(-1)
         return {self.out_keys[0]: self._gate(surprise.reshape(penalty.shape))}
+
+    def scored_rows(self, model_in: TensorDictBase, penalty: torch.Tensor) -> torch.Tensor:
+        """``[N]`` which of ``N`` rows (``model_in`` ``[N]``, ``penalty`` ``[N]``) eq. 8 reads.
+
+        Eq. 8 is 0 wherever r^f >= 0, so the model reads only the other rows: contacts (a
+        minority of a training batch), and rows whose penalty or model input is not finite (so
+        that NaN still reaches the reward). A diverged model shows on contact rows and in its
+        own training loss, which the loop checks.
+        """
+        rows = ~(penalty >= 0)
+        for key in (self.model.obs_key, self.model.action_key):
+            rows |= ~torch.isfinite(model_in.get(key).reshape(penalty.shape[0], -1)).all(-1)
+        return rows
+
+    def curiosity(
+        self, model_in: TensorDictBase, hit: torch.Tensor, params: TensorDictBase | None = None
+    ) -> torch.Tensor:
+        """The surprise inside eq. 8 of the penalties ``hit`` ``[N, 1]`` at ``model_in`` ``[N]``
+        under :attr:`params` (or ``params``), before :attr:`normalize` and ``scale``."""
+        return self._curiosity(hit, *self.predict(model_in, params))
+
+    def surprise(self, hit: torch.Tensor, curiosity: torch.Tensor) -> torch.Tensor:
+        """Eq. 8 on contact rows: :func:`~gentlerl.functional.penalty_surprise` of ``hit`` with
+        the (normalised) ``curiosity`` times ``scale``, before the gate."""
+        return penalty_surprise(hit, self.nll_scale * curiosity, *self.lam_prime)
 
     def sources(self, tensordict: TensorDictBase) -> dict[str, torch.Tensor]:
         r"""Where each step's :math:`r^{s_p}` comes from, under :attr:`params` (diagnostics).
@@ -218,7 +235,7 @@ class PenaltySurprise(ModelRewardTransform):
         mu, sigma2 = mixture_moments(mean, var, dim=0)
         spread, error = gaussian_nll_parts(penalty, mu, sigma2)
         weight = acceptability(-penalty, *self.lam_prime)
-        curiosity = self._normalized(self._curiosity(penalty, mean, var), learn=False)
+        curiosity = self.normalized(self._curiosity(penalty, mean, var), learn=False)
         return {
             "penalty": penalty,
             "a_prime": weight,

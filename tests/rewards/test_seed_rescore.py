@@ -1,0 +1,105 @@
+"""SeedBatchedRescore: S seeds' windows re-scored for r^sp (one vmapped forward, or seed by seed on
+a CPU) equal S calls of IntrinsicRewards.rescore_windows, each seed under its own target model."""
+
+import pytest
+import torch
+
+from gentlerl import keys
+from gentlerl.config import GentlenessConfig
+from gentlerl.data import NStepWriter, make_replay_buffer
+from gentlerl.rewards import IntrinsicRewards
+from gentlerl.rewards.seed_rescore import SeedBatchedRescore
+from tests.data.test_windows import _trajectory
+
+SEEDS = (0, 1, 2)
+OBS, ACT = 4, 2
+
+
+def _rewards(seed, **settings):
+    options = {"reward_delay": 0, "model_hidden": 16, "ensemble_size": 3, **settings}
+    rewards = IntrinsicRewards(
+        "r+rf+rsp", GentlenessConfig(**options), obs_dim=OBS, action_dim=ACT,
+        feature_shapes={}, seed=seed,
+    )  # fmt: skip
+    rewards.step(0)
+    return rewards
+
+
+def _batch(rewards, seed):
+    """A seed's 9 stored 3-step transitions with their windows (its own observations)."""
+    data = _trajectory(obs_dim=OBS, act_dim=ACT)
+    g = torch.Generator().manual_seed(seed)
+    data["observation"] += torch.randn(data["observation"].shape, generator=g)
+    rb = make_replay_buffer(100, 4, prioritized=False, n_steps=None)
+    stored = ["reward", keys.PENALTY, keys.PENALTY_SURPRISE]
+    writer = NStepWriter(rb, 3, 0.9, stored, rewards.window_keys)
+    writer.extend(rewards.rescored[0](data))
+    return rb[:]
+
+
+def _both(**settings):
+    """Each seed's rescore_windows and the batched rescoring, on equal models and batches."""
+    singles = [_rewards(s, **settings) for s in SEEDS]
+    grouped = [_rewards(s, **settings) for s in SEEDS]
+    batches = [_batch(r, s) for r, s in zip(singles, SEEDS, strict=True)]
+    for r, s in zip(grouped, SEEDS, strict=True):
+        _batch(r, s)  # the same collection: a running curiosity scale folds it in too
+    return singles, grouped, batches
+
+
+@pytest.mark.parametrize("vmapped", [True, False], ids=["vmapped", "seed_by_seed"])
+@pytest.mark.parametrize(
+    "settings",
+    [{}, {"curiosity_norm": True}, {"surprise_kind": "information_gain"}],
+    ids=["paper", "curiosity_norm", "information_gain"],
+)
+def test_the_batched_rescoring_equals_each_seeds_own(settings, vmapped):
+    singles, grouped, batches = _both(**settings)
+    copies = [b.clone() for b in batches]
+    expected = [r.rescore_windows(b, 0.9) for r, b in zip(singles, batches, strict=True)]
+    stacked, got = SeedBatchedRescore(grouped, vmapped=vmapped)(copies, 0.9)
+    assert stacked.batch_size == (len(SEEDS), 9)
+    for s in range(len(SEEDS)):
+        torch.testing.assert_close(
+            stacked[s]["next", keys.PENALTY_SURPRISE],
+            batches[s]["next", keys.PENALTY_SURPRISE],
+            rtol=1e-5,
+            atol=1e-5,
+        )
+        key = "penalty_surprise_per_contact_step"
+        assert got[s][key] == pytest.approx(expected[s][key], rel=1e-5)
+    rsp = stacked["next", keys.PENALTY_SURPRISE]
+    assert not torch.allclose(rsp[0], rsp[1])  # each seed its own model
+    if settings.get("curiosity_norm"):  # each seed's running scale folded its own rows
+        for single, group in zip(singles, grouped, strict=True):
+            a, b = single.rescored[0].curiosity_scale, group.rescored[0].curiosity_scale
+            assert b[1] == a[1] == 2 and b[0] == pytest.approx(a[0], rel=1e-5)
+
+
+def test_a_target_copy_reaches_the_stack_and_the_gate_is_each_seeds():
+    singles, grouped, batches = _both(penalty_target_period=1)
+    rescore = SeedBatchedRescore(grouped, vmapped=True)
+    for r in (singles[1], grouped[1]):  # seed 1's model moves; its next update copies it
+        with torch.no_grad():
+            r.losses["penalty"].model_params.apply_(lambda p: p.add_(0.1))
+        r.step(1)
+    stacked, _ = rescore([b.clone() for b in batches], 0.9)
+    singles[1].rescore_windows(batches[1], 0.9)
+    torch.testing.assert_close(
+        stacked[1]["next", keys.PENALTY_SURPRISE],
+        batches[1]["next", keys.PENALTY_SURPRISE],
+        rtol=1e-5,
+        atol=1e-5,
+    )
+    grouped[2].rescored[0].active.fill_(False)  # a closed gate: that seed's r^sp is 0
+    stacked, _ = rescore([b.clone() for b in batches], 0.9)
+    assert (stacked[2]["next", keys.PENALTY_SURPRISE] == 0).all()
+    assert (stacked[0]["next", keys.PENALTY_SURPRISE] != 0).any()
+
+
+def test_a_batch_per_seed_is_needed_and_the_cpu_scores_seed_by_seed():
+    grouped = [_rewards(s) for s in SEEDS]
+    rescore = SeedBatchedRescore(grouped)
+    assert not rescore.vmapped and rescore.params == []  # CPU models: no stack, no shared rows
+    with pytest.raises(ValueError, match=r"one batch per seed \(3\), got 1"):
+        rescore([_batch(grouped[0], 0)], 0.9)
