@@ -47,6 +47,7 @@ def test_top_level_help_lists_every_command(capsys):
         ("evaluate", ["default: 50", "{explore,touch,fragile}", "default: 0"]),
         ("export", ["(default: docs/policies)", "(default: ['touch', 'fragile'])"]),
         ("table", ["{sac,gentlebench,method3}", "the grid's --out folder"]),
+        ("seeds", ["SEED [SEED ...]", "(default: [])", "OUT/seed<SEED>"]),
     ],
 )
 def test_each_command_help_shows_its_options_with_defaults(capsys, command, defaults):

@@ -1,4 +1,4 @@
-"""The ``gentlerl`` command: ``gentlerl {train,sweep,plot,video,evaluate,claims,table,export,...}``.
+"""The ``gentlerl`` command: ``gentlerl {train,seeds,sweep,plot,video,evaluate,claims,table,...}``.
 
 Each subcommand is a module's ``main(argv, prog)`` in :mod:`gentlerl.apps`;
 ``gentlerl COMMAND --help`` prints that command's options with their defaults. Modules are imported
@@ -19,6 +19,10 @@ from gentlerl.apps.errors import DEBUG_ENV, debugging, exit_status, interrupted,
 #: command -> (module with ``main(argv, prog)``, one-line description); ``None``: the hydra app.
 COMMANDS: dict[str, tuple[str | None, str]] = {
     "train": (None, "train an agent (hydra overrides: task=touch variant=r+rf+rsp seed=0 ...)"),
+    "seeds": (
+        "gentlerl.apps.seeds",
+        "train several seeds of one run in one process, their updates one batched step",
+    ),
     "sweep": ("gentlerl.apps.sweeps", "run a wandb grid sweep file locally, resumably"),
     "plot": ("gentlerl.apps.plot", "paper-style figures and a summary table from runs or a sweep"),
     "video": ("gentlerl.apps.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),

@@ -25,6 +25,7 @@ __all__ = [
     "check_key",
     "check_value",
     "load_sweep",
+    "nested_overrides",
     "parse_set",
     "sweepable_fields",
 ]
@@ -160,16 +161,23 @@ def point_problem(
     :func:`parse_set`) is invalid, in one line, or ``None``."""
     from gentlerl.training.config import make_config
 
-    overrides: dict[str, Any] = {}
-    for key, value in [*point, *extra]:
-        *groups, name = key.lstrip("+").split(".")
-        target = overrides
-        for group in groups:
-            target = target.setdefault(group, {})
-        target[name] = value
+    overrides = nested_overrides([*point, *extra])
     try:
         make_config(overrides.pop("scale", scale or "cpu"), **overrides)
     except (ValueError, TypeError) as err:
         lines = [line.strip().removeprefix("- ") for line in str(err).splitlines()]
         return "; ".join(line for line in lines[1:] if line) or lines[0]
     return None
+
+
+def nested_overrides(pairs: Sequence[tuple[str, Any]]) -> dict[str, Any]:
+    """``(group.field, value)`` pairs (:func:`parse_set`'s) as the nested mapping
+    :func:`~gentlerl.training.config.make_config` takes (``scale`` stays a top-level key)."""
+    overrides: dict[str, Any] = {}
+    for key, value in pairs:
+        *groups, name = key.lstrip("+").split(".")
+        target = overrides
+        for group in groups:
+            target = target.setdefault(group, {})
+        target[name] = value
+    return overrides

@@ -213,15 +213,26 @@ def progress_postfix(
 
 class Progress:
     """The loop's progress: the statistics of the episodes it collects (the last 20 kept for the
-    bar), its env steps per second, and its tqdm bar (shown with ``enabled``)."""
+    bar), its env steps per second, and its tqdm bar (shown with ``enabled``; ``bar``: its line
+    and label where several bars show at once)."""
 
     def __init__(
-        self, reward_keys: list[str], total: int, frames: int, enabled: bool, unit: str = "N"
+        self,
+        reward_keys: list[str],
+        total: int,
+        frames: int,
+        enabled: bool,
+        unit: str = "N",
+        bar: tuple[int, str] | None = None,
     ) -> None:
         self.episodes = EpisodeStats(reward_keys)
         self.unit = unit
         self.recent: deque[dict[str, float]] = deque(maxlen=20)
-        self.bar = tqdm(total=total, initial=frames, disable=not enabled, unit="frame")
+        position, desc = bar if bar is not None else (None, None)
+        self.bar = tqdm(
+            total=total, initial=frames, disable=not enabled, unit="frame",
+            position=position, desc=desc,
+        )  # fmt: skip
         self._start, self._start_frames = time.perf_counter(), frames
 
     def finished_episodes(self, batch: TensorDictBase) -> list[dict[str, float]]:

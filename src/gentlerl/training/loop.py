@@ -152,12 +152,16 @@ class Trainer:
             self.finish_batch(frames, p)
         p.progress.close()
 
-    def start_pass(self, collector: Any, logger: RunLogger, eval_env: Any) -> LoopPass:
-        """The state of one pass of the loop over ``collector``."""
+    def start_pass(
+        self, collector: Any, logger: RunLogger, eval_env: Any, bar: int | None = None
+    ) -> LoopPass:
+        """The state of one pass of the loop over ``collector`` (``bar``: its progress bar's
+        line, labelled with the seed, where several runs show theirs at once)."""
         cfg = self.cfg
         progress = Progress(
             self.rewards.reward_keys, cfg.collector.total_frames, self.counters["frames"],
             cfg.logging.progress, force_unit(cfg.env.force_scale),
+            bar=None if bar is None else (bar, f"seed {cfg.seed}"),
         )  # fmt: skip
         next_sync = self.counters["updates"] + cfg.collector.weight_sync_every
         return LoopPass(collector, logger, eval_env, progress, self.wall_s, next_sync)

@@ -26,6 +26,7 @@ import torch
 from torchrl import timeit
 
 from gentlerl.agent.seeds import SeedBatchedLearner
+from gentlerl.config.layout import RunLayout
 from gentlerl.rewards.model_step import SeedBatchedModelStep
 from gentlerl.rewards.seed_rescore import SeedBatchedRescore
 from gentlerl.rewards.variants import COMPONENTS, reward_keys
@@ -60,6 +61,12 @@ def group_problems(cfgs: Sequence[TrainConfig]) -> list[str]:
             f"variant={cfgs[0].variant!r} learns an ICM model, which a seed group does not batch "
             "(the penalty and dynamics ensembles only); run its seeds one by one"
         )
+    for cfg in cfgs:  # before any seed's trainer makes its folder
+        if RunLayout(cfg.run_dir).checkpoint.exists():
+            problems.append(
+                f"run_dir={str(cfg.run_dir)!r} holds a checkpoint: a seed group does not "
+                "resume; resume each seed's run on its own, or choose new run_dirs"
+            )
     if cfgs[0].gentleness.multiplier != "none":
         problems.append(
             f"gentleness.multiplier={cfgs[0].gentleness.multiplier!r}: a seed group batches one "
@@ -81,12 +88,6 @@ class SeedGroup:
         if problems := group_problems(cfgs):
             raise ValueError("; ".join(problems))
         self.trainers = [Trainer(cfg, env_factory) for cfg in cfgs]
-        for trainer in self.trainers:
-            if trainer.resume_state is not None:
-                raise ValueError(
-                    f"run_dir={str(trainer.cfg.run_dir)!r} holds a checkpoint: a seed group does "
-                    "not resume; resume each seed's run on its own, or choose new run_dirs"
-                )
         cfg = cfgs[0]
         launch = {"compile": cfg.learner.compile, "cudagraphs": cfg.learner.cudagraphs}
         self.learner = SeedBatchedLearner(
@@ -116,9 +117,9 @@ class SeedGroup:
         try:
             collectors.extend(trainer.make_collector() for trainer in self.trainers)
             passes = [
-                trainer.start_pass(collector, logger, eval_env)
-                for trainer, collector, (_, logger, eval_env) in zip(
-                    self.trainers, collectors, opened, strict=True
+                trainer.start_pass(collector, logger, eval_env, bar=s)
+                for s, (trainer, collector, (_, logger, eval_env)) in enumerate(
+                    zip(self.trainers, collectors, opened, strict=True)
                 )
             ]
             for p in passes:
