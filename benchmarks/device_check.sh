@@ -3,10 +3,11 @@
 # CUDA), the learner (eager vs CUDA graph vs compiled, 1 vs 5 seeds, with and without the penalty
 # ensemble, paper scale), the replay's sample + priority update (CPU vs GPU storage), collection
 # (1, 4 and 16 worker processes) and a short end-to-end training run with the learner and its
-# replay on the GPU;
+# replay on the GPU; on request (section group, not in the default 8 minutes) the same short run
+# as a seed group of 5 seeds (its seed-updates/s against e2e's one seed);
 # a dated markdown table goes to OUT_DIR/device_table.md (append it to benchmarks/RESULTS.md).
 #
-#   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner replay collect e2e
+#   bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...]    SECTION: env learner replay collect e2e group
 #   LEARNER_MODES="cudagraphs" LEARNER_LIMIT=120 E2E_FRAMES=25000 E2E_LIMIT=150 bash ... (a shorter check)
 #
 # Packages: the machine's own python3 (torch with CUDA); what it lacks (torchrl, tensordict,
@@ -79,6 +80,17 @@ if [[ " $SECTIONS " == *" e2e "* ]]; then
   if [ ! -f "$OUT_DIR/e2e.json" ]; then  # stopped by its limit: its rates up to there
     echo "=== e2e_stopped" >>"$LOG"
     run 60 e2e_stopped "$PY" benchmarks/e2e_speed.py --from-logs "$E2E_RUN" --random-frames 10000
+  fi
+fi
+if [[ " $SECTIONS " == *" group "* ]]; then
+  echo "=== group" >>"$LOG"
+  GROUP_RUN=/tmp/gentlerl_group_run
+  rm -rf "$GROUP_RUN"
+  run "${GROUP_LIMIT:-200}" group "$PY" benchmarks/e2e_speed.py --device cuda --graphs --replay-on-device --workers 3 --threads 2 \
+    --seeds 5 --frames "${GROUP_FRAMES:-20000}" --run-dir "$GROUP_RUN" --json "$OUT_DIR/group.json"
+  if [ ! -f "$OUT_DIR/group.json" ]; then
+    echo "=== group_stopped" >>"$LOG"
+    run 60 group_stopped "$PY" benchmarks/e2e_speed.py --from-logs "$GROUP_RUN/seed0" --seeds 5 --random-frames 10000
   fi
 fi
 cat "$TABLE"

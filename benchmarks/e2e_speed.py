@@ -2,7 +2,7 @@
 
     python benchmarks/e2e_speed.py [--task fragile] [--frames 30000] [--random-frames 10000]
         [--device cuda] [--graphs] [--replay-on-device] [--workers 8] [--threads 4]
-        [--run-dir D] [--json F]
+        [--seeds 5] [--run-dir D] [--json F]
     python benchmarks/e2e_speed.py --from-logs D --random-frames 10000   (a stopped run's rates)
 
 The run is the paper preset (``scale=paper``: batch 256, critics 400-300, one update per frame)
@@ -13,7 +13,10 @@ collector with 4 hands), no checkpoint and one 5-episode evaluation. It reports 
 clock, frames/s over the run, the loop's own ``train/updates_per_s`` (model + learner updates,
 sampling and priorities; collection excluded) after the random frames, and the time a 500k-frame
 run would take at those rates (``init_random_frames`` at the random-phase rate, the rest at the
-learning rate): the measured floor of the paper-scale goal. The loop logs (and flushes) its
+learning rate): the measured floor of the paper-scale goal. ``--seeds S`` (> 1) trains seeds
+0 .. S-1 as one seed group (``gentlerl seeds``: their updates one batched step, each seed its own
+collector of ``--workers``) and reads the rates of seed 0's run (the group's: every seed takes
+the same updates), with ``seed_updates_per_s`` = S x the loop's. The loop logs (and flushes) its
 scalars every 100 updates, so a run stopped by a time limit (``--run-dir`` keeps its logs) still
 gives its rates up to where it stopped: ``--from-logs`` reads them without training.
 """
@@ -31,7 +34,7 @@ import numpy as np
 import yaml
 
 from gentlerl.analysis.runs import load_run
-from gentlerl.training import make_config, train
+from gentlerl.training import make_config, train, train_seeds
 
 PAPER_FRAMES = 500_000
 
@@ -43,11 +46,8 @@ def run(args: argparse.Namespace, run_dir: Path) -> dict:
         collector |= {"kind": "multi", "num_workers": args.workers, "num_envs": 1}
         collector["frames_per_batch"] = 50 * args.workers
     learner = {"device": args.device, "compile": args.graphs, "cudagraphs": args.graphs}
-    cfg = make_config(
-        "paper",
+    settings = dict(
         task=args.task,
-        seed=args.seed,
-        run_dir=str(run_dir),
         num_threads=args.threads,
         collector=collector,
         learner=learner,
@@ -61,18 +61,27 @@ def run(args: argparse.Namespace, run_dir: Path) -> dict:
         },
     )
     start = time.perf_counter()
-    summary = train(cfg)
+    if args.seeds > 1:  # a seed group: seed k in run_dir/seed<k>, the rates of seed 0's run
+        cfgs = [
+            make_config("paper", seed=k, run_dir=str(run_dir / f"seed{k}"), **settings)
+            for k in range(args.seeds)
+        ]
+        summary = train_seeds(cfgs)[0]
+        run_dir = run_dir / "seed0"
+    else:
+        summary = train(make_config("paper", seed=args.seed, run_dir=str(run_dir), **settings))
     wall = time.perf_counter() - start
-    return rates(run_dir, args.random_frames) | {
+    return rates(run_dir, args.random_frames, args.seeds) | {
         "wall_s": wall,
-        "final_success": summary.get("success"),
+        "final_success": summary.get("success_rate"),
     }
 
 
-def rates(run_dir: Path, random_frames: int) -> dict:
+def rates(run_dir: Path, random_frames: int, seeds: int = 1) -> dict:
     """A (finished or stopped) run's rates from its logged ``train/wall_s`` and
     ``train/updates_per_s``: frames/s while random and while learning, the loop's median
-    updates/s, and a 500k-frame run's time at those rates."""
+    updates/s (times ``seeds``: the seed-updates/s of a group), and a 500k-frame run's time at
+    those rates."""
     if not (run_dir / "config.yaml").is_file():
         raise SystemExit(f"{run_dir}: no config.yaml, not a gentlerl run directory")
     cfg = yaml.safe_load((run_dir / "config.yaml").read_text())
@@ -100,6 +109,8 @@ def rates(run_dir: Path, random_frames: int) -> dict:
         "random_phase_frames_per_s": random_fps,
         "learning_frames_per_s": learn_fps,
         "loop_updates_per_s_median": float(np.median(ups[:, 1])) if len(ups) else float("nan"),
+        "seeds": seeds,
+        "seed_updates_per_s": seeds * float(np.median(ups[:, 1])) if len(ups) else float("nan"),
         "projected_500k_min": projected / 60,
         "final_success": None,
     }
@@ -116,6 +127,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--threads", type=int, default=1, help="torch threads of the learner")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", type=int, default=1, help="> 1: seeds 0..S-1 as a seed group")
     parser.add_argument("--run-dir", help="where the run writes (default: a temporary folder)")
     parser.add_argument("--from-logs", metavar="RUN_DIR", help="only read a run's logged rates")
     parser.add_argument("--json")
@@ -124,8 +136,10 @@ def main() -> None:
         parser.error(
             f"need 0 < --random-frames < --frames, got {args.random_frames}, {args.frames}"
         )
+    if args.seeds < 1:
+        parser.error(f"--seeds must be >= 1, got {args.seeds}")
     if args.from_logs:
-        row = rates(Path(args.from_logs), args.random_frames)
+        row = rates(Path(args.from_logs), args.random_frames, args.seeds)
     elif args.run_dir:
         row = run(args, Path(args.run_dir))
     else:
@@ -135,14 +149,16 @@ def main() -> None:
     if args.json:
         Path(args.json).write_text(json.dumps(row, indent=1))
     print(f"\nload {os.getloadavg()[0]:.1f}")
-    print("| task | learner | workers | frames | wall s | frames/s random / learning "
-          "| loop updates/s | 500k frames at these rates |")  # fmt: skip
-    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| task | learner | seeds | workers | frames | wall s | frames/s random / learning "
+          "| loop updates/s (x seeds) | 500k frames at these rates |")  # fmt: skip
+    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     learner = f"{row['device']}{' + compile + graphs' if row['graphs'] else ''}"
     print(
-        f"| {row['task']} | {learner} | {row['workers']} | {row['frames']:,} | {row['wall_s']:.0f} "
+        f"| {row['task']} | {learner} | {row['seeds']} | {row['workers']} | {row['frames']:,} "
+        f"| {row['wall_s']:.0f} "
         f"| {row['random_phase_frames_per_s']:,.0f} / {row['learning_frames_per_s']:,.0f} "
-        f"| {row['loop_updates_per_s_median']:,.0f} | {row['projected_500k_min']:.1f} min |"
+        f"| {row['loop_updates_per_s_median']:,.0f} ({row['seed_updates_per_s']:,.0f}) "
+        f"| {row['projected_500k_min']:.1f} min |"
     )
 
 
