@@ -94,3 +94,21 @@ def test_a_group_is_refused_in_one_line_before_any_run(tmp_path):
     assert not any(tmp_path.glob("seed*/checkpoint.pt"))
     with pytest.raises(ValueError, match="needs at least one config"):
         SeedGroup([], toy_env)
+
+
+def test_the_vmapped_rescoring_trains_the_group_as_the_seed_by_seed_one(group_runs, tmp_path):
+    """The GPU's path (one vmapped r^sp forward of every seed's target model) run on the CPU:
+    the group logs what the CPU's seed-by-seed re-scoring logged, to float rounding."""
+    from gentlerl.rewards.seed_rescore import SeedBatchedRescore
+
+    root, _, _ = group_runs
+    group = SeedGroup(_group(tmp_path, total_frames=600), toy_env)
+    group.rescore = SeedBatchedRescore([t.rewards for t in group.trainers], vmapped=True)
+    group.run()
+    for s in (0, 1):
+        for name in ("train/loss_value", "train/penalty_surprise_per_contact_step"):
+            got = read_scalar(tmp_path / f"seed{s}", name)
+            expected = read_scalar(root / f"seed{s}", name)
+            assert [f for f, _ in got] == [f for f, _ in expected] == [300, 400, 500, 600]
+            assert [v for _, v in got] == pytest.approx([v for _, v in expected], rel=1e-4)
+        assert abs(read_scalar(tmp_path / f"seed{s}", name)[-1][1]) > 0.01  # r^sp was on
