@@ -9,10 +9,36 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
+from torchrl.objectives import HardUpdate
 from torchrl.objectives.common import LossModule
 
 from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
 from gentlerl.models.icm import ICMModel
+
+
+class ModelHardUpdate(HardUpdate):
+    """TorchRL's ``HardUpdate`` of an :class:`EnsembleModelLoss`'s target, normaliser statistics
+    included.
+
+    TorchRL's target updaters copy only the entries that take a gradient (the weights). A model's
+    running normaliser statistics (:class:`~gentlerl.models.RunningNorm` buffers: the inputs',
+    and the dynamics model's per-feature deltas') would stay at their initial values in the
+    target (mean 0, var 1), which would then read trained weights on un-normalised inputs and
+    score every surprise (eqs. 6 and 8) on wrongly scaled inputs. Each copy here also copies
+    them, in place (views of the target, e.g. a seed group's stacked rows, stay valid).
+
+    Args:
+        loss_module: the model's loss (its ``model_params`` and ``target_model_params``).
+        value_network_update_interval: as TorchRL's: the copy comes on every
+            ``(interval + 1)``-th :meth:`step` call.
+    """
+
+    def step(self) -> None:
+        copies = self.counter == self.value_network_update_interval
+        super().step()
+        if copies:
+            with torch.no_grad():
+                self.loss_module.target_model_params.update_(self.loss_module.model_params)
 
 
 class EnsembleModelLoss(LossModule):
@@ -25,9 +51,10 @@ class EnsembleModelLoss(LossModule):
     members (they still differ by their seeded initialisation).
 
     The loss keeps a *target* copy of the model (``target_model_params``, normaliser statistics
-    included) for the surprise transforms; update it with TorchRL's ``HardUpdate`` (paper: every
-    5000 dynamics / 1000 penalty model updates). Each ``forward`` in training mode first merges
-    the batch into the model's running input / target statistics.
+    included) for the surprise transforms; update it with :class:`ModelHardUpdate` (paper: every
+    5000 dynamics / 1000 penalty model updates), not TorchRL's plain ``HardUpdate``, which
+    leaves the statistics behind. Each ``forward`` in training mode first merges the batch into
+    the model's running input / target statistics.
 
     Returns ``loss_<name>``: the NLL averaged over members and samples.
     """

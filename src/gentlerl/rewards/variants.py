@@ -52,15 +52,16 @@ class Part:
 
 
 def target_updater(loss: LossModule, period: int) -> HardUpdate:
-    """TorchRL's ``HardUpdate`` of ``loss``, copying its targets every ``period`` ``step()`` calls.
+    """A ``HardUpdate`` of ``loss`` copying its target model, normaliser statistics included
+    (:class:`~gentlerl.objectives.models.ModelHardUpdate`), every ``period`` ``step()`` calls.
 
     Made before anything reads ``loss.target_*_params``: TorchRL warns on every read of target
     parameters that no updater has been associated with.
     """
-    from torchrl.objectives import HardUpdate
+    from gentlerl.objectives.models import ModelHardUpdate
 
     # HardUpdate copies on the (interval + 1)-th step() call.
-    return HardUpdate(loss, value_network_update_interval=period - 1)
+    return ModelHardUpdate(loss, value_network_update_interval=period - 1)
 
 
 @dataclass(frozen=True)
