@@ -138,6 +138,8 @@ def main() -> None:
         )
     if args.seeds < 1:
         parser.error(f"--seeds must be >= 1, got {args.seeds}")
+    if args.seeds > 1 and args.seed != 0:
+        parser.error(f"--seeds {args.seeds} trains seeds 0..{args.seeds - 1}: leave --seed out")
     if args.from_logs:
         row = rates(Path(args.from_logs), args.random_frames, args.seeds)
     elif args.run_dir:

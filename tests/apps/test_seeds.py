@@ -44,11 +44,12 @@ def test_a_refused_group_is_one_line_and_makes_no_folder(tmp_path, capsys, argv,
     assert not out.exists()
 
 
-def test_a_run_dir_with_a_checkpoint_is_refused_before_any_folder(tmp_path, capsys):
+@pytest.mark.parametrize("left", ["checkpoint.pt", "logs"])
+def test_a_run_dir_that_holds_a_run_is_refused_before_any_folder(tmp_path, capsys, left):
     (tmp_path / "g" / "seed1").mkdir(parents=True)
-    (tmp_path / "g" / "seed1" / "checkpoint.pt").write_bytes(b"")
+    (tmp_path / "g" / "seed1" / left).mkdir()
     assert cli.main(["seeds", "0", "1", "--out", str(tmp_path / "g")]) == 1
-    assert "holds a checkpoint: a seed group does not resume" in capsys.readouterr().err
+    assert "holds a run (a checkpoint or logs): a seed group does not" in capsys.readouterr().err
     assert not (tmp_path / "g" / "seed0").exists()
 
 

@@ -68,8 +68,6 @@ def test_the_batched_rescoring_equals_each_seeds_own(settings, vmapped):
         )
         key = "penalty_surprise_per_contact_step"
         assert got[s][key] == pytest.approx(expected[s][key], rel=1e-5)
-    rsp = stacked["next", keys.PENALTY_SURPRISE]
-    assert not torch.allclose(rsp[0], rsp[1])  # each seed its own model
     if settings.get("curiosity_norm"):  # each seed's running scale folded its own rows
         for single, group in zip(singles, grouped, strict=True):
             a, b = single.rescored[0].curiosity_scale, group.rescored[0].curiosity_scale
@@ -103,3 +101,9 @@ def test_a_batch_per_seed_is_needed_and_the_cpu_scores_seed_by_seed():
     assert not rescore.vmapped and rescore.params == []  # CPU models: no stack, no shared rows
     with pytest.raises(ValueError, match=r"one batch per seed \(3\), got 1"):
         rescore([_batch(grouped[0], 0)], 0.9)
+    other = [grouped[0], _rewards(1, lam_prime=(2.0, 3.0)), grouped[2]]
+    with pytest.raises(ValueError, match=r"the rewards of seeds \[1\] differ from seed 0's"):
+        SeedBatchedRescore(other, vmapped=True)
+    no_window = [_batch(r, s).exclude("window") for r, s in zip(grouped, SEEDS, strict=True)]
+    with pytest.raises(KeyError, match="needs each transition's window of steps"):
+        SeedBatchedRescore(grouped, vmapped=True)(no_window, 0.9)

@@ -49,6 +49,8 @@ def test_each_seeds_actor_is_its_row_of_the_batched_learner(group_runs):
         assert len(rows) == len(saved) > 0
         for value in rows:
             assert any(v.shape == value.shape and torch.equal(v, value) for v in saved.values())
+        for v in saved.values():  # its own row only, not the whole stack the row is a view of
+            assert v.untyped_storage().nbytes() == v.numel() * v.element_size()
     one, two = (group.learner.params["actor"][s] for s in (0, 1))
     assert not all(
         torch.equal(a, b)

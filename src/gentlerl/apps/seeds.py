@@ -13,8 +13,8 @@ seeds' learner step at 0.60x one seed's rate on an H200, benchmarks/RESULTS.md);
 costs about what its seeds cost one after the other. ``--set`` items are the config fields of
 ``gentlerl train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resume``
 are the command's own. A group is refused in one line before any folder is made: settings it
-does not batch (an ICM variant, ``gentleness.multiplier``), a run directory that holds a
-checkpoint (a group does not resume), repeated seeds.
+does not batch (an ICM variant, ``gentleness.multiplier``), a run directory that holds a run
+(a group does not resume), repeated seeds.
 """
 
 from __future__ import annotations

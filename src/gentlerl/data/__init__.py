@@ -15,6 +15,7 @@ from gentlerl.data.windows import (
     nstep_return,
     nstep_windows,
     rescore_windows,
+    window_of,
 )
 
 __all__ = [
@@ -22,13 +23,14 @@ __all__ = [
     "TorchPrioritizedSampler",
     "NStepTerminated",
     "NStepWriter",
+    "contact_step_sum",
     "make_beta_scheduler",
     "make_model_buffer",
     "make_nstep_transform",
     "make_replay_buffer",
-    "contact_step_sum",
     "nstep_return",
     "nstep_windows",
     "rescore_windows",
+    "window_of",
     "WINDOW",
 ]

@@ -78,12 +78,7 @@ def rescore_windows(
     steps with a penalty (``("next", penalty_key)`` < 0; absent when the batch has none), the
     number that falls when a model learns what it pays surprise for.
     """
-    window = batch.get(WINDOW, None)
-    if window is None:
-        raise KeyError(
-            "rescore_surprise needs each transition's window of steps ('window'), written "
-            "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
-        )
+    window = window_of(batch)
     flat, steps = window.reshape(-1).to(device), batch.get("steps_to_next_obs")
     metrics: dict[str, float] = {}
     for t in transforms:
@@ -95,6 +90,18 @@ def rescore_windows(
         if count > 0:  # a batch without contact says nothing about the bonus's size
             metrics[f"{key}_per_contact_step"] = (total / count).item()
     return metrics
+
+
+def window_of(batch: TensorDictBase) -> TensorDictBase:
+    """The sampled transitions' windows of raw steps (``batch[WINDOW]``), or a ``KeyError``
+    saying where they come from."""
+    window = batch.get(WINDOW, None)
+    if window is None:
+        raise KeyError(
+            "rescore_surprise needs each transition's window of steps ('window'), written "
+            "by an NStepWriter given window_keys=IntrinsicRewards.window_keys"
+        )
+    return window
 
 
 def contact_step_sum(

@@ -7,8 +7,9 @@ penalty model (:meth:`~gentlerl.rewards.IntrinsicRewards.rescore_windows` does i
 seed). Vmapped, the S target models' parameters are stacked on a seed dimension (each seed's own
 target tensors then share its row, so ``HardUpdate``'s in-place copies land in the stack) and one
 ``torch.vmap`` of :meth:`~gentlerl.transforms.PenaltySurprise.curiosity` scores every window
-step of every seed: one model's kernels, S times wider, and no host read, instead of S forwards
-each behind a data-dependent selection.
+step of every seed: one model's kernels, S times wider, and one host read per update (the seeds'
+per-contact-step means, read together; with ``curiosity_norm`` also each seed's running scale),
+instead of S forwards each behind a data-dependent selection.
 
 The vmapped forward reads every row and keeps eq. 8's value on the rows it is defined on
 (:meth:`~gentlerl.transforms.PenaltySurprise.scored_rows`), 0 elsewhere: the same numbers as the
@@ -22,14 +23,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from functools import partial
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
 
-from gentlerl.data import WINDOW, contact_step_sum, nstep_return
+from gentlerl.data import contact_step_sum, nstep_return, window_of
 from gentlerl.models.stacking import share_rows, stack_parameters
-from gentlerl.rewards.rescore import Rescoring
 from gentlerl.transforms import PenaltySurprise
+
+if TYPE_CHECKING:
+    from gentlerl.rewards.intrinsic import IntrinsicRewards
 
 
 class SeedBatchedRescore:
@@ -39,21 +43,24 @@ class SeedBatchedRescore:
 
     Args:
         rewards: one :class:`~gentlerl.rewards.IntrinsicRewards` per seed, of one variant and
-            settings (their :attr:`~gentlerl.rewards.IntrinsicRewards.rescored` transforms are
-            re-scored). Vmapped, the seeds' target parameters are made views of the stack's rows.
+            equal settings, checked (their
+            :attr:`~gentlerl.rewards.IntrinsicRewards.rescored` transforms are re-scored).
+            Vmapped, the seeds' target parameters are made views of the stack's rows.
         vmapped: one vmapped forward for every seed (True) or each seed's own
             ``rescore_windows`` (False); ``None``: vmapped where the models are on a CUDA device.
     """
 
-    def __init__(self, rewards: Sequence[Rescoring], vmapped: bool | None = None) -> None:
+    def __init__(self, rewards: Sequence[IntrinsicRewards], vmapped: bool | None = None) -> None:
         if len(rewards) < 1:
             raise ValueError("SeedBatchedRescore needs at least one seed's rewards, got 0")
-        per_seed = [list(r.rescored) for r in rewards]
-        if len({len(ts) for ts in per_seed}) != 1:
+        first = (rewards[0].reward_keys, rewards[0].settings)
+        differ = [s for s, r in enumerate(rewards) if (r.reward_keys, r.settings) != first]
+        if differ:
             raise ValueError(
-                "SeedBatchedRescore: the seeds rescore different numbers of rewards "
-                f"{[len(ts) for ts in per_seed]}; a group's seeds share one variant"
+                f"SeedBatchedRescore: the rewards of seeds {differ} differ from seed 0's in their "
+                "variant or gentleness settings; a group's seeds share both"
             )
+        per_seed = [list(r.rescored) for r in rewards]
         self.rewards, self.num_seeds = list(rewards), len(rewards)
         self.vmapped = rewards[0].device.type == "cuda" if vmapped is None else vmapped
         #: ``[kind][seed]``: each rescored reward of every seed (vmapped only).
@@ -93,7 +100,7 @@ class SeedBatchedRescore:
         metrics: list[dict[str, float]] = [{} for _ in self.rewards]
         if not self.transforms:
             return metrics
-        window, steps = batch.get(WINDOW), batch.get("steps_to_next_obs")
+        window, steps = window_of(batch), batch.get("steps_to_next_obs")
         flat = window.reshape(self.num_seeds, -1).to(self.rewards[0].device)
         for seeds, params, curiosity in zip(
             self.transforms, self.params, self._curiosity, strict=True

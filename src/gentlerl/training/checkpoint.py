@@ -51,11 +51,22 @@ def _to_plain(obj: Any) -> Any:
         return {_ARRAY: torch.from_numpy(obj.copy())}
     if isinstance(obj, np.generic):
         return obj.item()
+    if isinstance(obj, torch.Tensor) and _is_view_of_more(obj):
+        # ``torch.save`` writes a view's whole storage: a seed's row of a seed group's stacked
+        # parameters would carry every seed's values
+        return obj.detach().clone()
     if isinstance(obj, dict):
         return {k: _to_plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return type(obj)(_to_plain(v) for v in obj)
     return obj
+
+
+def _is_view_of_more(tensor: torch.Tensor) -> bool:
+    """Whether ``tensor`` (dense) sees only part of its storage."""
+    if tensor.layout != torch.strided:
+        return False
+    return tensor.untyped_storage().nbytes() > tensor.numel() * tensor.element_size()
 
 
 def _from_plain(obj: Any) -> Any:

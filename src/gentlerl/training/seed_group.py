@@ -62,10 +62,10 @@ def group_problems(cfgs: Sequence[TrainConfig]) -> list[str]:
             "(the penalty and dynamics ensembles only); run its seeds one by one"
         )
     for cfg in cfgs:  # before any seed's trainer makes its folder
-        if RunLayout(cfg.run_dir).checkpoint.exists():
+        if RunLayout(cfg.run_dir).has_started():
             problems.append(
-                f"run_dir={str(cfg.run_dir)!r} holds a checkpoint: a seed group does not "
-                "resume; resume each seed's run on its own, or choose new run_dirs"
+                f"run_dir={str(cfg.run_dir)!r} holds a run (a checkpoint or logs): a seed group "
+                "does not resume; resume each seed's run on its own, or choose new run_dirs"
             )
     if cfgs[0].gentleness.multiplier != "none":
         problems.append(
