@@ -31,7 +31,6 @@ WITHOUT_A_TEST = {
     "gentlerl.envs.task_names",
     "gentlerl.lazy",  # tests/repo/test_startup.py
     "gentlerl.models.layers",
-    "gentlerl.objectives.models",  # tests/models/test_ensemble.py
     "gentlerl.objectives.value",
     "gentlerl.rewards.chain",
     "gentlerl.training.env_probe",
