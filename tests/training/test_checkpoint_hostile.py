@@ -74,3 +74,28 @@ def test_a_policy_of_expanded_or_oversized_weights_is_refused_before_allocating(
     dense = make_actor(10, 20, (256, 256)).state_dict()  # the shapes are compared after the size
     with pytest.raises(CheckpointError, match=r"would have 12,800,\d{3},\d{3} parameters, more"):
         load_policy(_saved_policy(tmp_path, obs_dim, dense))
+
+
+def test_an_interrupt_inside_torch_save_surfaces_as_itself(tmp_path, monkeypatch):
+    """Ctrl-C / SIGTERM striking inside ``torch.save``: its zip writer's exit then fails with a
+    RuntimeError; the save raises the interrupt, and the old checkpoint is left as it was."""
+    import torch
+
+    from gentlerl.apps.errors import Terminated
+    from gentlerl.training import checkpoint
+
+    path = tmp_path / "checkpoint.pt"
+    checkpoint.save_checkpoint(path, {"frames": 1})
+
+    def struck(obj, f):
+        try:
+            raise Terminated(15)
+        finally:  # what torch's _open_zipfile_writer.__exit__ does on the way out
+            raise RuntimeError("[enforce fail at inline_container.cc:672] . unexpected pos 64 vs 0")
+
+    monkeypatch.setattr(torch, "save", struck)
+    with pytest.raises(Terminated):
+        checkpoint.save_checkpoint(path, {"frames": 2})
+    monkeypatch.undo()
+    assert checkpoint.load_checkpoint(path)["frames"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.pt"]

@@ -106,6 +106,13 @@ def save_checkpoint(path: str | os.PathLike, state: dict[str, Any]) -> None:
     try:
         write_atomic(path, lambda f: torch.save(_to_plain(state), f), binary=True)
     except BaseException as err:
+        if isinstance(err.__context__, KeyboardInterrupt) and not isinstance(
+            err, KeyboardInterrupt
+        ):
+            # Ctrl-C or SIGTERM inside torch.save: its zip writer's exit then fails with a
+            # RuntimeError ("unexpected pos"); the interrupt is what happened (the old file and
+            # no partial one are left, as write_atomic promises)
+            raise err.__context__ from None
         if isinstance(err, RuntimeError | OSError) and _out_of_space(err, path.parent):
             kept = f"{path} is intact" if path.exists() else f"no {path.name} was written"
             raise OSError(
