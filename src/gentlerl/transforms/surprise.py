@@ -185,17 +185,19 @@ class PenaltySurprise(ModelRewardTransform):
         keys = (self.model.obs_key, self.model.action_key)
         for key in keys:
             self.read(tensordict, key)  # a missing input named in a clear error
-        model_in, flat = tensordict.select(*keys).reshape(-1), penalty.reshape(-1)
+        flat = penalty.reshape(-1)
         surprise = torch.zeros_like(flat)
-        index = self.scored_rows(model_in, flat).nonzero().squeeze(-1)
-        if index.numel():
+        index = self.scored_rows(tensordict, flat).nonzero().squeeze(-1)
+        if index.numel():  # the inputs gathered only where there is contact
+            model_in = tensordict.select(*keys).reshape(-1)[index]
             hit = flat[index].unsqueeze(-1)
-            curiosity = self.normalized(self.curiosity(model_in[index], hit), learn=True)
+            curiosity = self.normalized(self.curiosity(model_in, hit), learn=True)
             surprise[index] = self.surprise(hit, curiosity).squeeze(-1)
         return {self.out_keys[0]: self._gate(surprise.reshape(penalty.shape))}
 
     def scored_rows(self, model_in: TensorDictBase, penalty: torch.Tensor) -> torch.Tensor:
-        """``[N]`` which of ``N`` rows (``model_in`` ``[N]``, ``penalty`` ``[N]``) eq. 8 reads.
+        """``[N]`` which of ``N`` rows (``model_in``: ``N`` rows in any batch shape, ``penalty``
+        ``[N]``) eq. 8 reads.
 
         Eq. 8 is 0 wherever r^f >= 0, so the model reads only the other rows: contacts (a
         minority of a training batch), and rows whose penalty or model input is not finite (so
