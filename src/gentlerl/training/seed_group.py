@@ -11,9 +11,10 @@ evaluates and is checkpointed with no copy. Before each checkpoint every seed's 
 get their rows of the batched Adam states, so a seed's checkpoint resumes as a run of its own;
 a group itself does not resume (refused).
 
-The r^sp re-scoring at sampling is one step too (each seed's target penalty model, one vmapped
-forward: :class:`~gentlerl.rewards.seed_rescore.SeedBatchedRescore`). Per seed, not batched:
-collection, the replay's sample and priority update, evaluations. A group's numbers are its own
+The r^sp re-scoring at sampling (each seed's target penalty model) is one vmapped forward on a
+GPU and seed by seed on a CPU, where that is cheaper
+(:class:`~gentlerl.rewards.seed_rescore.SeedBatchedRescore`). Per seed, not batched: collection,
+the replay's sample and priority update, evaluations. A group's numbers are its own
 (the seeds share the process's random stream) and reproduce themselves for the same seeds.
 """
 
