@@ -3,10 +3,10 @@
     python benchmarks/learner_graphs.py [--device cuda] [--scale paper] [--seeds 1 5] [--models]
         [--modes eager cudagraphs compile+cudagraphs] [--min-time 2] [--threads 1] [--json F]
 
-One row per (mode, seeds): a D4PG update of ``S`` seeds is one :class:`SeedBatchedLearner` step
-on a ``[S, B]`` batch (S = 1 is a :class:`Learner`); with ``--models`` a second row per seed count
-adds the penalty ensemble's step through the same mode (S = 1: a :class:`ModelStep`, S > 1: one
-:class:`SeedBatchedModelStep` on ``[S, E, B]``), the loop's two updates, each with the one host
+One row per (mode, seeds): a D4PG update of ``S`` seeds is one :class:`Learner` step on a
+``[S, B]`` batch; with ``--models`` a second row per seed count adds the penalty ensemble's step
+through the same mode (one :class:`ModelStep` on ``[S, E, B]``), the loop's two updates, each with
+the one host
 read of its loss the training loop makes. ``updates/s`` counts steps, ``seed-updates/s``
 steps x S; the last column is the seed-batched rate per step over the one-seed rate of the same
 mode (the goal on a GPU: >= 0.8 at 5 seeds). Modes: ``eager``; ``compile`` (``learner.compile``:
@@ -29,10 +29,9 @@ from learner_speed import ACT, OBS, Scale, _batch, _time, make_loss, make_scale
 
 from gentlerl import keys
 from gentlerl.agent.learner import Learner
-from gentlerl.agent.seeds import SeedBatchedLearner
 from gentlerl.models import PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss, MultiHeadD4PGLoss
-from gentlerl.rewards.model_step import ModelStep, SeedBatchedModelStep
+from gentlerl.rewards.model_step import ModelStep
 
 MODES = ("eager", "compile", "cudagraphs", "compile+cudagraphs")
 
@@ -52,12 +51,8 @@ def make_update(scale: Scale, seeds: int, mode: str, device: str):
         compile="compile" in mode,
         cudagraphs="cudagraphs" in mode,
     )
-    if seeds == 1:
-        learner: Learner | SeedBatchedLearner = Learner(_loss(scale, 0, device), **options)
-        batch = _batch(scale, device)
-    else:
-        learner = SeedBatchedLearner([_loss(scale, s, device) for s in range(seeds)], **options)
-        batch = torch.stack([_batch(scale, device) for _ in range(seeds)])
+    learner = Learner([_loss(scale, s, device) for s in range(seeds)], **options)
+    batch = torch.stack([_batch(scale, device) for _ in range(seeds)])
     return lambda: learner.update(batch)
 
 
@@ -70,8 +65,8 @@ def _model_batch(scale: Scale, device: str):
 
 
 def make_model_update(scale: Scale, seeds: int, mode: str, device: str):
-    """``update()``: one penalty-ensemble step of ``seeds`` seeds through ``mode`` (a
-    ``ModelStep``, or one ``SeedBatchedModelStep``), with the read of its loss the loop makes."""
+    """``update()``: one penalty-ensemble step of ``seeds`` seeds through ``mode`` (one
+    ``ModelStep``), with the read of its loss the loop makes."""
     g = scale.cfg.gentleness
     losses = [
         EnsembleModelLoss(
@@ -80,10 +75,7 @@ def make_model_update(scale: Scale, seeds: int, mode: str, device: str):
         for s in range(seeds)
     ]
     options = {"compile": "compile" in mode, "cudagraphs": "cudagraphs" in mode}
-    if seeds == 1:
-        step, batch = ModelStep(losses[0], g.lr_model, **options), _model_batch(scale, device)
-        return lambda: step(batch)
-    batched = SeedBatchedModelStep(losses, g.lr_model, **options)
+    batched = ModelStep(losses, g.lr_model, **options)
     batch = torch.stack([_model_batch(scale, device) for _ in range(seeds)])
     return lambda: batched(batch).tolist()
 

@@ -24,7 +24,7 @@ import torch
 from torchrl.collectors import Collector
 
 from gentlerl.distributed.collector import make_ray_collector
-from gentlerl.training import Trainer, make_config
+from gentlerl.training import Lockstep, Trainer, make_config
 from gentlerl.training.builders import AGENT_KEYS, default_env_factory
 from gentlerl.training.config import TrainConfig
 
@@ -67,10 +67,11 @@ def _trainer(cfg: TrainConfig, fill_frames: int) -> Trainer:
 
 def _update_rate(trainer: Trainer, seconds: float = 10.0) -> float:
     """Full updates (every model, then the D4PG learner) per second."""
-    trainer.update()  # warm-up
+    loop = Lockstep([trainer])
+    loop.update()  # warm-up
     n, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
-        trainer.update()
+        loop.update()
         n += 1
     return n / (time.perf_counter() - start)
 

@@ -32,7 +32,7 @@ def test_one_config_per_seed_equal_but_for_seed_and_folder(tmp_path):
         (["0", "1", "--set", "run_dir=x"], "run_dir is set per seed by gentlerl seeds"),
         (["0", "1", "--set", "hydra.run.dir=x"], "unknown key 'hydra.run.dir'"),
         (["0", "1", "--set", "collector.total_frames=abc"], "must be an integer"),
-        (["0", "1", "--set", "variant=r+icm"], "learns an ICM model, which a seed group does not"),
+        (["0", "1", "--set", "resume=true"], "--set 'resume=true': resume is set per seed"),
     ],
 )
 def test_a_refused_group_is_one_line_and_makes_no_folder(tmp_path, capsys, argv, message):
@@ -44,12 +44,11 @@ def test_a_refused_group_is_one_line_and_makes_no_folder(tmp_path, capsys, argv,
     assert not out.exists()
 
 
-@pytest.mark.parametrize("left", ["checkpoint.pt", "logs"])
-def test_a_run_dir_that_holds_a_run_is_refused_before_any_folder(tmp_path, capsys, left):
+def test_a_run_dir_that_holds_a_checkpoint_is_refused_before_any_folder(tmp_path, capsys):
     (tmp_path / "g" / "seed1").mkdir(parents=True)
-    (tmp_path / "g" / "seed1" / left).mkdir()
+    (tmp_path / "g" / "seed1" / "checkpoint.pt").write_bytes(b"")
     assert cli.main(["seeds", "0", "1", "--out", str(tmp_path / "g")]) == 1
-    assert "holds a run (a checkpoint or logs): a seed group does not" in capsys.readouterr().err
+    assert "holds a checkpoint: a seed group does not resume" in capsys.readouterr().err
     assert not (tmp_path / "g" / "seed0").exists()
 
 
@@ -63,6 +62,7 @@ def test_the_group_trains_and_each_seed_gets_its_closing_lines(tmp_path, capsys,
     monkeypatch.setattr(seed_group, "train_seeds", fake)
     summaries = seeds_cli.main(["0", "3", "--set", "variant=r", "--out", str(tmp_path)])
     assert [c.seed for c in seen] == [0, 3] and summaries[1]["success_rate"] == 0.8
+    assert {c.resume for c in seen} == {"auto"}  # a group stopped before a checkpoint re-runs
     out = capsys.readouterr().out
     assert "seed 0: success_rate=0.500 max_impact_mean=1.250 N" in out
     assert "seed 3: success_rate=0.800" in out and str(tmp_path / "seed3") in out

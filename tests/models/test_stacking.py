@@ -5,7 +5,13 @@ import torch
 from tensordict import TensorDict
 from torch import nn
 
-from gentlerl.models.stacking import optimizer_rows, share_rows, stack_parameters
+from gentlerl.models.stacking import (
+    load_optimizer_row,
+    optimizer_row,
+    share_rows,
+    stack_optimizer_rows,
+    stack_parameters,
+)
 
 
 def _module(seed):
@@ -36,15 +42,12 @@ def test_stack_marks_weights_as_parameters_and_shared_rows_see_the_stacks_update
         stack_parameters([])
 
 
-def test_each_seeds_optimiser_gets_its_row_of_the_batched_adam():
-    """A seed's Adam given its row steps as if it had taken the batched steps alone."""
+def test_a_seeds_row_of_the_batched_adam_steps_as_if_it_had_stepped_alone():
+    """optimizer_row hands out a seed's own Adam state; load_optimizer_row puts one back into its
+    row (the others kept); both round trips step as Adams of their own would."""
     batched_param = nn.Parameter(torch.zeros(2, 4))
     batched = torch.optim.Adam([batched_param], lr=0.1)
     grads = torch.tensor([[1.0, 2.0, 3.0, 4.0], [-1.0, 0.5, 0.0, 2.0]])
-    singles, params = [], []
-    for s in range(2):
-        params.append(nn.Parameter(torch.zeros(4)))
-        singles.append(torch.optim.Adam([params[s]], lr=0.1))
     alone = [nn.Parameter(torch.zeros(4)) for _ in range(2)]
     alone_opt = [torch.optim.Adam([p], lr=0.1) for p in alone]
     for _ in range(3):
@@ -53,12 +56,22 @@ def test_each_seeds_optimiser_gets_its_row_of_the_batched_adam():
         for s in range(2):
             alone[s].grad = grads[s].clone()
             alone_opt[s].step()
-    optimizer_rows(batched, singles)
+    rows = [optimizer_row(batched.state_dict(), s) for s in range(2)]
     for s in range(2):
-        with torch.no_grad():
-            params[s].copy_(batched_param[s])
-        for opt, p in ((singles[s], params[s]), (alone_opt[s], alone[s])):
-            p.grad = grads[s].clone()
-            opt.step()
-        torch.testing.assert_close(params[s], alone[s])
-        assert float(singles[s].state[params[s]]["step"]) == 4.0
+        own = nn.Parameter(batched_param[s].detach().clone())
+        single = torch.optim.Adam([own], lr=0.1)
+        single.load_state_dict(rows[s])
+        own.grad, alone[s].grad = grads[s].clone(), grads[s].clone()
+        single.step()
+        alone_opt[s].step()
+        torch.testing.assert_close(own, alone[s])
+        assert float(single.state[own]["step"]) == 4.0
+    fresh_param = nn.Parameter(batched_param.detach().clone())
+    fresh = torch.optim.Adam([fresh_param], lr=0.1)
+    load_optimizer_row(fresh, alone_opt[1].state_dict(), 1, {})  # nothing stepped yet
+    load_optimizer_row(fresh, alone_opt[0].state_dict(), 0, {})
+    stacked = stack_optimizer_rows([alone_opt[s].state_dict() for s in range(2)])
+    for key in ("exp_avg", "exp_avg_sq"):
+        torch.testing.assert_close(fresh.state_dict()["state"][0][key], stacked["state"][0][key])
+    with pytest.raises(ValueError, match="needs at least one seed's optimiser state"):
+        stack_optimizer_rows([])

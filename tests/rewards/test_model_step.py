@@ -1,5 +1,5 @@
 """ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters;
-SeedBatchedModelStep: S seeds' steps in one equal S ModelSteps."""
+S seeds' steps in one equal S one-seed steps; a seed's optimiser row round-trips."""
 
 import pytest
 import torch
@@ -33,8 +33,9 @@ def test_one_step_is_the_summed_loss_then_one_adam_step():
     before = [p.detach().clone() for p in step.loss.parameters() if p.requires_grad]
     batch = _penalty_batch(0)
     expected = step.loss(batch.clone())["loss_penalty"].item()
-    got = step(batch)
-    assert got == pytest.approx(expected, rel=1e-6)  # the loss before the step
+    got = step(batch.unsqueeze(0))
+    assert got.shape == (1,)  # one seed's summed loss, no host read
+    assert got.item() == pytest.approx(expected, rel=1e-6)  # the loss before the step
     after = [p for p in step.loss.parameters() if p.requires_grad]
     assert all(not torch.equal(a, b) for a, b in zip(before, after, strict=True))
 
@@ -43,15 +44,15 @@ def test_one_step_is_the_summed_loss_then_one_adam_step():
 def test_the_compiled_step_gives_the_eager_losses_and_parameters():
     eager, compiled = _step(), _step(compile=True)
     for seed in range(3):
-        a, b = eager(_penalty_batch(seed)), compiled(_penalty_batch(seed))
-        assert b == pytest.approx(a, rel=1e-5, abs=1e-6)
+        a, b = eager(_penalty_batch(seed)[None]), compiled(_penalty_batch(seed)[None])
+        torch.testing.assert_close(b, a, rtol=1e-5, atol=1e-6)
     for p, q in zip(eager.loss.parameters(), compiled.loss.parameters(), strict=True):
         torch.testing.assert_close(q, p, rtol=1e-5, atol=1e-6)
 
 
 def test_cudagraphs_on_cpu_is_refused_in_one_line():
     with pytest.raises(
-        ValueError, match="cudagraphs needs the model on a CUDA device, this one is"
+        ValueError, match="cudagraphs needs the models on a CUDA device, these are on cpu"
     ):
         _step(cudagraphs=True)
 
@@ -70,33 +71,65 @@ def test_seed_batched_steps_equal_one_model_step_per_seed():
     step equal those of 3 separate steps, seed by seed; the seeds stay different."""
     seeds = (0, 1, 2)
     singles = [ModelStep(loss, 1e-2) for loss in _losses(seeds)]
-    batched = SeedBatchedModelStep(_losses(seeds), 1e-2)
+    batched = ModelStep(_losses(seeds), 1e-2)
     for k in range(3):
         batches = [_penalty_batch(10 * k + s) for s in seeds]
-        expected = torch.tensor([step(b.clone()) for step, b in zip(singles, batches, strict=True)])
+        expected = torch.cat(
+            [step(b.clone()[None]) for step, b in zip(singles, batches, strict=True)]
+        )
         got = batched(torch.stack(batches))
         assert got.shape == (3,)
         torch.testing.assert_close(got, expected, rtol=1e-5, atol=1e-6)
     for s, single in enumerate(singles):
-        mine = batched.write_back(s).model_params
+        mine = batched.losses[s].model_params  # its own tensors: views of row s
         for key, value in single.loss.model_params.items(True, True):
             torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)
+        row, own = batched.optimizer_state(s)["state"], single.optimizer_state()["state"]
+        for index, moments in own.items():
+            for name, value in moments.items():
+                torch.testing.assert_close(row[index][name], value, rtol=1e-4, atol=1e-6)
     counts = batched.params.get(("input_norm", "count"))
     assert counts.shape == (3,) and torch.all(counts > 3 * 16)  # every step's 2 x 8 samples
     first = [p for p in batched.params.values(True, True) if p.requires_grad][0]
     assert not torch.allclose(first[0], first[1])
 
 
-def test_seed_batched_model_step_refuses_a_batch_without_its_seeds():
-    step = SeedBatchedModelStep(_losses((0, 1, 2)), 1e-2)
+def test_a_model_step_refuses_a_batch_without_its_seeds_and_bad_settings():
+    step = ModelStep(_losses((0, 1, 2)), 1e-2)
     with pytest.raises(ValueError, match=r"batch shaped \[num_seeds=3, ...\], got \(2, 8\)"):
         step(_penalty_batch(0))
     with pytest.raises(ValueError, match="needs at least one loss"):
-        SeedBatchedModelStep([], 1e-2)
+        ModelStep([], 1e-2)
     with pytest.raises(TypeError, match=r"needs a loss with a pure losses\(batch, params\)"):
-        SeedBatchedModelStep([torch.nn.Linear(2, 2)], 1e-2)
+        ModelStep([torch.nn.Linear(2, 2)], 1e-2)
     with pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"):
-        SeedBatchedModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+        ModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+    for lr in (float("nan"), float("inf"), 0.0, -1e-3, True):
+        with pytest.raises(ValueError, match=f"lr must be a finite number > 0, got {lr!r}"):
+            ModelStep(_losses((0,)), lr)
+
+
+def test_a_seeds_optimiser_row_loads_into_a_fresh_step_and_steps_as_before():
+    """What a seed's checkpoint saves of a group's step (its row) resumes alone: the next step
+    of a one-seed step loaded with it equals the group's next step of that seed."""
+    batched = ModelStep(_losses((0, 1)), 1e-2)
+    for k in range(2):
+        batched(torch.stack([_penalty_batch(10 * k + s) for s in (0, 1)]))
+    alone = ModelStep(_losses((5,)), 1e-2)  # another seed's weights, overwritten below
+    alone.losses[0].load_state_dict(batched.losses[1].state_dict())
+    alone.load_optimizer_state(batched.optimizer_state(1))
+    nxt = [_penalty_batch(30 + s) for s in (0, 1)]
+    expected = batched(torch.stack(nxt))[1]
+    got = alone(nxt[1][None])[0]
+    torch.testing.assert_close(got, expected, rtol=1e-5, atol=1e-6)
+    for key, value in batched.losses[1].model_params.items(True, True):
+        torch.testing.assert_close(alone.losses[0].model_params[key], value, rtol=1e-5, atol=1e-6)
+
+
+def test_the_deprecated_seed_batched_step_warns_and_is_a_model_step():
+    with pytest.warns(DeprecationWarning, match="SeedBatchedModelStep is deprecated since 0.2.0"):
+        step = SeedBatchedModelStep(_losses((0, 1)), 1e-2, share=True)
+    assert isinstance(step, ModelStep) and step.num_seeds == 2
 
 
 def _dynamics_batch(seed):
@@ -126,12 +159,14 @@ def test_seed_batched_dynamics_steps_equal_one_model_step_per_seed():
         ]
 
     singles = [ModelStep(loss, 1e-2) for loss in losses()]
-    batched = SeedBatchedModelStep(losses(), 1e-2)
+    batched = ModelStep(losses(), 1e-2)
     for k in range(2):
         batches = [_dynamics_batch(10 * k + s) for s in (0, 1)]
-        expected = torch.tensor([step(b.clone()) for step, b in zip(singles, batches, strict=True)])
+        expected = torch.cat(
+            [step(b.clone()[None]) for step, b in zip(singles, batches, strict=True)]
+        )
         torch.testing.assert_close(batched(torch.stack(batches)), expected, rtol=1e-5, atol=1e-6)
     for s, single in enumerate(singles):
-        mine = batched.write_back(s).model_params
+        mine = batched.losses[s].model_params
         for key, value in single.loss.model_params.items(True, True):
             torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)

@@ -143,7 +143,7 @@ def test_trainer_state_round_trip(tmp_path):
         assert torch.equal(a, b)
     target = "target_value_network_params"
     assert (getattr(resumed.learner.loss, target) == getattr(run.learner.loss, target)).all()
-    assert resumed.learner.target_updater.counter == run.learner.target_updater.counter
+    assert resumed.learner.target_counter == run.learner.target_counter
     sa, sb = resumed.learner.optimizer.state_dict(), run.learner.optimizer.state_dict()
     assert all(
         torch.equal(sa["state"][k]["exp_avg"], sb["state"][k]["exp_avg"]) for k in sa["state"]

@@ -3,6 +3,7 @@
 import pytest
 import torch
 
+from gentlerl.config.layout import RunLayout
 from gentlerl.training import train
 from gentlerl.training.seed_group import SeedGroup, group_problems, train_seeds
 from tests.helpers import read_scalar, tiny_config, toy_env
@@ -88,8 +89,6 @@ def test_a_group_is_refused_in_one_line_before_any_run(tmp_path):
     assert group_problems([other, lr]) == ["seed 1's config differs from seed 0's in ['learner']"]
     same_dir = [other, tiny_config(tmp_path / "seed0", seed=1)]
     assert "each seed needs its own run_dir" in group_problems(same_dir)[0]
-    icm = _group(tmp_path, variant="r+icm")
-    assert "learns an ICM model, which a seed group does not batch" in group_problems(icm)[0]
     steered = _group(tmp_path, tolerance=2.0, multiplier="pid")
     with pytest.raises(ValueError, match="a seed group batches one penalty weight"):
         SeedGroup(steered, toy_env)
@@ -98,14 +97,37 @@ def test_a_group_is_refused_in_one_line_before_any_run(tmp_path):
         SeedGroup([], toy_env)
 
 
+def test_a_group_refuses_a_checkpoint_but_reruns_a_group_stopped_before_its_first(tmp_path):
+    """A run_dir with a checkpoint is refused before any lock or folder; one holding only the
+    logs of a group stopped before its first checkpoint starts again (resume=auto)."""
+    cfgs = _group(tmp_path, total_frames=300, resume="auto")
+    stale = RunLayout(tmp_path / "seed1").scalars / "stale.csv"
+    stale.parent.mkdir(parents=True)
+    stale.write_text("5,1.0\n")
+    train_seeds(cfgs, toy_env)
+    assert (tmp_path / "seed1" / "DONE").exists()
+    assert read_scalar(tmp_path / "seed1", "stale") == []  # the stopped run's logs cut
+    with pytest.raises(ValueError, match="holds a checkpoint: a seed group does not resume"):
+        train_seeds(_group(tmp_path, total_frames=300, resume="auto"), toy_env)
+
+
+def test_an_icm_group_trains_its_models_as_one_step(tmp_path):
+    """ICM's loss has a pure losses(batch, params) too: its seeds step as one ModelStep."""
+    group = SeedGroup(_group(tmp_path, variant="r+icm", total_frames=300), toy_env)
+    assert group.models["icm"].num_seeds == 2
+    group.run()
+    for s in (0, 1):
+        assert len(read_scalar(tmp_path / f"seed{s}", "train/model_icm")) >= 1
+
+
 def test_the_vmapped_rescoring_trains_the_group_as_the_seed_by_seed_one(group_runs, tmp_path):
     """The GPU's path (one vmapped r^sp forward of every seed's target model) run on the CPU:
     the group logs what the CPU's seed-by-seed re-scoring logged, to float rounding."""
-    from gentlerl.rewards.seed_rescore import SeedBatchedRescore
+    from gentlerl.rewards.window_rescore import WindowRescorer
 
     root, _, _ = group_runs
     group = SeedGroup(_group(tmp_path, total_frames=600), toy_env)
-    group.rescore = SeedBatchedRescore([t.rewards for t in group.trainers], vmapped=True)
+    group.rescorer = WindowRescorer([t.rewards for t in group.trainers], vmapped=True)
     group.run()
     for s in (0, 1):
         for name in ("train/loss_value", "train/penalty_surprise_per_contact_step"):

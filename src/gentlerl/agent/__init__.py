@@ -1,7 +1,7 @@
 """The D4PG agent: the multi-head learner and the builder that wires it for a config.
 
-``learner`` holds the D4PG :class:`Learner` (loss, optimiser, target updater); ``seeds`` batches
-several seeds' learners as one ``torch.vmap``; ``builder`` wires the policy, the learner, the
+``learner`` holds the D4PG :class:`Learner` (loss, optimiser, target updates) of one seed or of
+several as one step over a leading seed axis; ``builder`` wires the policy, the learner, the
 rewards (:mod:`gentlerl.rewards`) and the replay for a config, so that any runner (one process,
 several, distributed) trains the same agent. Names are imported on first use
 (:mod:`gentlerl.lazy`).
@@ -13,7 +13,6 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "gentlerl.agent.builder": ("AgentBuilder",),
-        "gentlerl.agent.learner": ("Learner",),
-        "gentlerl.agent.seeds": ("SeedBatchedLearner",),
+        "gentlerl.agent.learner": ("Learner", "SeedBatchedLearner", "TrainingState"),
     },
 )

@@ -127,11 +127,11 @@ class AgentBuilder:
             cudagraphs=learner.cudagraphs,
         )
 
-    def make_policy(self, learner: Learner) -> torch.nn.Module:
-        """The learner's acting actor (:attr:`Learner.policy`, on the CPU) with Gaussian
-        exploration noise (``collector.sigma``)."""
+    def make_policy(self, learner: Learner, seed: int = 0) -> torch.nn.Module:
+        """The learner's acting actor of seed ``seed`` (:meth:`Learner.policy_of`, on the CPU)
+        with Gaussian exploration noise (``collector.sigma``)."""
         return make_exploration_policy(
-            learner.policy, self.cfg.collector.sigma, action_dim=self.action_dim
+            learner.policy_of(seed), self.cfg.collector.sigma, action_dim=self.action_dim
         )
 
     def make_replay(

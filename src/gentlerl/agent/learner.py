@@ -1,26 +1,47 @@
-"""``Learner``: the multi-head D4PG loss, one grouped optimiser and the target updater."""
+"""``Learner``: the multi-head D4PG update of S agents (seeds) as one step; S = 1 for a plain run.
+
+Every parameter of the online and target actor and critics gets a leading seed axis
+(:func:`~gentlerl.models.stacking.stack_parameters` of each loss's
+:meth:`~gentlerl.objectives.MultiHeadD4PGLoss.network_params`), and each seed's own tensors are
+made views of its row (:func:`~gentlerl.models.stacking.share_rows`), so a seed's actor acts,
+evaluates and is checkpointed with the trained weights and no copy. The loss's pure
+:meth:`~gentlerl.objectives.MultiHeadD4PGLoss.losses` runs on every row: one ``torch.vmap`` over
+the seeds when S > 1 (the kernels of one agent, S times wider), a plain call on row 0 when
+S = 1. The seeds stay independent: each loss reads its own parameters, the summed loss gives each
+its own gradient, and Adam is elementwise, so one fused Adam over the stack is S Adams.
+"""
 
 from __future__ import annotations
 
 import copy
+import math
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.objectives import HardUpdate
 
+from gentlerl.models.stacking import (
+    load_optimizer_row,
+    optimizer_row,
+    over_seeds,
+    share_rows,
+    stack_parameters,
+)
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.objectives.compile import compile_step
 
 
 @dataclass
 class TrainingState:
-    """Everything the learner needs to continue, in one object (as Acme's D4PG ``TrainingState``).
+    """Everything one seed's learner needs to continue, in one object (as Acme's D4PG
+    ``TrainingState``); the format of a run of its own, whatever group it trained in.
 
     Attributes:
-        networks: the loss's state dict: online and target actor and critic parameters.
-        optimizer: the grouped Adam's state (actor and critic parameter groups).
+        networks: the seed's loss's state dict: online and target actor and critic parameters.
+        optimizer: its Adam's state (actor and critic parameter groups), without a seed axis.
         target_counter: updates since the last target copy.
     """
 
@@ -30,7 +51,7 @@ class TrainingState:
 
 
 class Learner:
-    """One D4PG update: both losses, one optimiser step, the target copy when it is due.
+    """D4PG updates: both losses, one optimiser step, the target copy when it is due.
 
     The gradient step (losses, backward, one fused Adam step over both parameter groups) is a
     pure function of the batch's loss inputs: it returns the losses and the per-sample priorities
@@ -40,19 +61,25 @@ class Learner:
     copy made, outside that step.
 
     Args:
-        loss: the multi-head D4PG loss (it holds the actor, the critics and their targets).
+        loss: the multi-head D4PG loss (it holds the actor, the critics and their targets), or
+            one per seed, of one architecture (each built under its own seed).
         lr_actor, lr_critic: Adam step sizes of the two parameter groups.
-        target_update_period: updates between hard target copies (Acme: 100).
+        target_update_period: updates between hard target copies (Acme: 100), every seed at once.
         compile: ``torch.compile`` the losses and their backward (the first update compiles them:
             seconds to minutes).
         cudagraphs: replay the whole step as a CUDA graph (its Adam capturable); CUDA only.
-        separate_policy: act with a CPU copy of the actor (:attr:`policy`); default: when the
-            learner is not on the CPU.
+        separate_policy: act with CPU copies of the actors (:meth:`policy_of`); default: when
+            the learner is not on the CPU.
+
+    :meth:`update` takes a batch shaped ``[S, B]`` (seed s's transitions in row s), or ``[B]``
+    when S = 1, on any device, and writes its priorities where the batch is. Per seed:
+    :meth:`policy_of`, :meth:`state_of`, :meth:`restore`; with one seed, :attr:`policy`,
+    :attr:`state`, :attr:`actor` and :attr:`loss` are its own.
     """
 
     def __init__(
         self,
-        loss: MultiHeadD4PGLoss,
+        loss: MultiHeadD4PGLoss | Sequence[MultiHeadD4PGLoss],
         *,
         lr_actor: float,
         lr_critic: float,
@@ -61,87 +88,177 @@ class Learner:
         cudagraphs: bool = False,
         separate_policy: bool | None = None,
     ) -> None:
-        if target_update_period < 1:
-            raise ValueError(f"target_update_period must be >= 1, got {target_update_period}")
-        device = next(loss.parameters()).device
+        losses = [loss] if isinstance(loss, MultiHeadD4PGLoss) else list(loss)
+        _check_options(len(losses), lr_actor, lr_critic, target_update_period)
+        device = next(losses[0].parameters()).device
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"learner.cudagraphs needs a CUDA learner, this one is on {device}")
-        self.loss, self.device = loss, device
+        self.losses, self.num_seeds, self.device = losses, len(losses), device
+        for seed in losses:  # their targets are copied here (TorchRL warns of a loss without)
+            seed._has_update_associated = dict.fromkeys(seed._has_update_associated, True)
+        self.params = stack_parameters([seed.network_params() for seed in losses])
+        for name in ("target_actor", "target_value"):
+            self.params[name].apply_(lambda p: p.requires_grad_(False))
+        share_rows(self.params, [seed.network_params() for seed in losses])
         separate = device.type != "cpu" if separate_policy is None else separate_policy
-        self._policy = copy.deepcopy(loss.actor_network).cpu() if separate else loss.actor_network
+        self._policies = [
+            copy.deepcopy(seed.actor_network).cpu() if separate else seed.actor_network
+            for seed in losses
+        ]
         # One fused kernel per parameter group instead of ~10 small ones per parameter.
         self._adam_options = {"fused": True, "foreach": None, "capturable": cudagraphs}
         self.optimizer = torch.optim.Adam(
             [
-                {"params": list(loss.actor_network_params.values(True, True)), "lr": lr_actor},
-                {"params": list(loss.value_network_params.values(True, True)), "lr": lr_critic},
+                {"params": list(self.params["actor"].values(True, True)), "lr": lr_actor},
+                {"params": list(self.params["value"].values(True, True)), "lr": lr_critic},
             ],
             **self._adam_options,
         )
-        # TorchRL's HardUpdate copies on the (interval + 1)-th step.
-        self.target_updater = HardUpdate(
-            loss, value_network_update_interval=target_update_period - 1
-        )
-        self._in_keys = loss.in_keys
-        self._priority_key = loss.tensor_keys.priority
+        self.target_update_period = target_update_period
+        #: Updates since the last target copy (a copy comes when it reaches the period).
+        self.target_counter = 0
+        self._in_keys = losses[0].in_keys
+        self._priority_key = losses[0].tensor_keys.priority
         # Compiled: the losses (AOTAutograd compiles their backward too). The fused Adam step is one
         # native kernel per group; dynamo would only graph-break around it.
-        self._losses = compile_step(self._losses_and_priorities, compile=compile)
+        self._losses = compile_step(over_seeds(losses[0].losses, self.num_seeds), compile=compile)
         self._step = compile_step(self._gradient_step, cudagraphs=cudagraphs)
+
+    # -- one seed's views ----------------------------------------------------------------
+    @property
+    def loss(self) -> MultiHeadD4PGLoss:
+        """The loss whose modules run every seed's parameters (seed 0's own)."""
+        return self.losses[0]
 
     @property
     def actor(self) -> torch.nn.Module:
-        """The actor being trained (on the learner's device)."""
-        return self.loss.actor_network
+        """The actor being trained (on the learner's device); one seed only."""
+        return self._one_seed("actor").actor_network
 
     @property
     def policy(self) -> torch.nn.Module:
-        """The actor that acts, on the CPU: :attr:`actor` itself on a CPU learner, else a copy
-        as of the last :meth:`sync_policy`."""
-        return self._policy
+        """The actor that acts (:meth:`policy_of` the one seed)."""
+        self._one_seed("policy")
+        return self._policies[0]
+
+    def policy_of(self, seed: int) -> torch.nn.Module:
+        """Seed ``seed``'s acting actor, on the CPU: its trained actor itself on a CPU learner,
+        else a copy as of the last :meth:`sync_policy`."""
+        return self._policies[self._seat(seed)]
 
     @torch.no_grad()
-    def sync_policy(self) -> None:
-        """Copy the trained actor's parameters into :attr:`policy` (nothing on a CPU learner)."""
-        if self._policy is not self.loss.actor_network:
-            self._policy.load_state_dict(self.loss.actor_network.state_dict())
+    def sync_policy(self, seed: int | None = None) -> None:
+        """Copy the trained actors' parameters into their acting copies (``seed``: only that
+        seed's; nothing on a CPU learner)."""
+        seats = range(self.num_seeds) if seed is None else [self._seat(seed)]
+        for s in seats:
+            if self._policies[s] is not self.losses[s].actor_network:
+                self._policies[s].load_state_dict(self.losses[s].actor_network.state_dict())
 
+    # -- the update ----------------------------------------------------------------------
     def _gradient_step(self, batch: TensorDictBase) -> TensorDict:
-        """Losses, backward, Adam step; returns the losses and the priorities (no host sync)."""
+        """Every seed's losses, one backward of their sum, one Adam step; returns the ``[S]``
+        losses with the ``[S, B]`` priorities, with no host sync."""
         self.optimizer.zero_grad(set_to_none=True)
-        out, total = self._losses(batch)
-        total.backward()
+        out, priority = self._losses(batch, self.params)
+        (out["loss_value"] + out["loss_actor"]).sum().backward()  # disjoint parameters
         self.optimizer.step()
-        return out.detach()
-
-    def _losses_and_priorities(self, batch: TensorDictBase) -> tuple[TensorDict, torch.Tensor]:
-        """The loss's outputs with the priorities, and the loss to minimise."""
-        out = self.loss(batch)
-        out.set(self._priority_key, batch.get(self._priority_key))
-        return out, out["loss_value"] + out["loss_actor"]  # disjoint parameters
-
-    def update(self, batch: TensorDictBase) -> TensorDict:
-        """One gradient step on ``batch`` (its ``td_error`` is written for the priorities)."""
-        inputs = batch.select(*self._in_keys, strict=False)
-        home = batch.device or inputs.get(self._in_keys[0]).device  # where the replay is
-        out = self._step(inputs.to(self.device, non_blocking=True))
-        priority = out.pop(self._priority_key).to(home)
-        batch.set(self._priority_key, priority, inplace=True)
-        self.target_updater.step()
+        out = out.detach()
+        out.set(self._priority_key, priority)
         return out
 
+    def update(self, batch: TensorDictBase) -> TensorDict:
+        """One gradient step of every seed on ``batch`` (``[S, B]``, or ``[B]`` with one seed);
+        writes its priorities (``td_error``) into it. Returns the losses: ``[S]`` entries, or
+        scalars for a ``[B]`` batch."""
+        one = batch.batch_dims == 1 and self.num_seeds == 1
+        if not one and (batch.batch_dims != 2 or batch.batch_size[0] != self.num_seeds):
+            raise ValueError(
+                f"Learner.update needs a batch shaped [num_seeds={self.num_seeds}, B]"
+                f"{' or [B]' if self.num_seeds == 1 else ''}, got {tuple(batch.batch_size)}"
+            )
+        inputs = batch.select(*self._in_keys, strict=False)
+        inputs = inputs.unsqueeze(0) if one else inputs
+        home = batch.device or inputs.get(self._in_keys[0]).device  # where the replays are
+        out = self._step(inputs.to(self.device, non_blocking=True))
+        priority = out.pop(self._priority_key).to(home)
+        batch.set(self._priority_key, priority[0] if one else priority, inplace=True)
+        self.target_counter += 1
+        if self.target_counter >= self.target_update_period:
+            self._copy_targets()
+        return out[0] if one else out
+
+    @torch.no_grad()
+    def _copy_targets(self) -> None:
+        """Hard target copies of every seed, buffers included (as Acme's D4PG)."""
+        self.params["target_actor"].update_(self.params["actor"])
+        self.params["target_value"].update_(self.params["value"])
+        self.target_counter = 0
+
+    # -- state ---------------------------------------------------------------------------
     @property
     def state(self) -> TrainingState:
+        """:meth:`state_of` the one seed."""
+        self._one_seed("state")
+        return self.state_of(0)
+
+    def state_of(self, seed: int) -> TrainingState:
+        """Seed ``seed``'s networks, its row of the optimiser and the target counter: what a
+        run of its own saves."""
+        s = self._seat(seed)
         return TrainingState(
-            networks=self.loss.state_dict(),
-            optimizer=self.optimizer.state_dict(),
-            target_counter=self.target_updater.counter,
+            networks=self.losses[s].state_dict(),
+            optimizer=optimizer_row(self.optimizer.state_dict(), s),
+            target_counter=self.target_counter,
         )
 
-    def restore(self, state: TrainingState) -> None:
-        self.loss.load_state_dict(state.networks)
-        # This learner's Adam kernels (fused, capturable), whatever the saved state was run with.
-        groups = [{**g, **self._adam_options} for g in state.optimizer["param_groups"]]
-        self.optimizer.load_state_dict({**state.optimizer, "param_groups": groups})
-        self.target_updater.counter = state.target_counter
-        self.sync_policy()
+    def restore(self, state: TrainingState, seed: int = 0) -> None:
+        """Seed ``seed``'s :class:`TrainingState` into its row (networks, optimiser row, the
+        target counter the seeds share), run with this learner's Adam kernels whatever the saved
+        ones used."""
+        s = self._seat(seed)
+        self.losses[s].load_state_dict(state.networks)  # into the shared rows, in place
+        load_optimizer_row(self.optimizer, state.optimizer, s, self._adam_options)
+        self.target_counter = int(state.target_counter) % self.target_update_period
+        self.sync_policy(s)
+
+    def _seat(self, seed: int) -> int:
+        if not 0 <= seed < self.num_seeds:
+            raise IndexError(f"seed index {seed} out of range for {self.num_seeds} seeds")
+        return seed
+
+    def _one_seed(self, what: str) -> MultiHeadD4PGLoss:
+        if self.num_seeds != 1:
+            raise ValueError(f"Learner.{what} is one seed's; this learner has {self.num_seeds}")
+        return self.losses[0]
+
+
+def _check_options(num_seeds: int, lr_actor: float, lr_critic: float, period: int) -> None:
+    """One-line refusals of the learner's settings, before anything is allocated."""
+    if num_seeds < 1:
+        raise ValueError("Learner needs at least one loss (one per seed), got 0")
+    for name, lr in (("lr_actor", lr_actor), ("lr_critic", lr_critic)):
+        if isinstance(lr, bool) or not isinstance(lr, int | float) or not math.isfinite(lr):
+            raise ValueError(f"{name} must be a finite number > 0, got {lr!r}")
+        if lr <= 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {lr!r}")
+    if isinstance(period, bool) or not isinstance(period, int) or period < 1:
+        raise ValueError(f"target_update_period must be >= 1, got {period!r}")
+
+
+class SeedBatchedLearner(Learner):
+    """Deprecated since 0.2.0, removed in 0.3.0: :class:`Learner` takes one loss per seed.
+
+    Its rows are always shared with each seed's loss (``share`` is ignored); a seed's state is
+    :meth:`Learner.state_of`, its actor :meth:`Learner.policy_of`."""
+
+    def __init__(
+        self, losses: Sequence[MultiHeadD4PGLoss], *, share: bool = True, **options: Any
+    ) -> None:
+        warnings.warn(
+            "gentlerl.agent.SeedBatchedLearner is deprecated since 0.2.0 and removed in 0.3.0: "
+            "use gentlerl.agent.Learner(losses), which takes one loss per seed",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        super().__init__(list(losses), **options)

@@ -50,7 +50,11 @@ def group_configs(
         base = make_config(scale, **overrides)
         out = Path("runs") / run_name(base.task, base.env.name) / base.variant
     return [
-        make_config(scale, **overrides, seed=seed, run_dir=str(Path(out) / f"seed{seed}"))
+        # resume="auto": a group stopped before its first checkpoint starts again where it was
+        # (a run directory with a checkpoint is refused: a group does not resume)
+        make_config(
+            scale, **overrides, seed=seed, run_dir=str(Path(out) / f"seed{seed}"), resume="auto"
+        )
         for seed in seeds
     ]
 

@@ -97,7 +97,7 @@ class EnsembleModelLoss(LossModule):
         """``loss_<name>`` of the model whose parameters and normaliser statistics are ``params``
         (the structure of ``model_params``); in training mode the statistics in ``params`` first
         take in the batch. ``torch.vmap`` over a stack of ``params`` runs several seeds' models
-        at once (:class:`~gentlerl.rewards.model_step.SeedBatchedModelStep`)."""
+        at once (:class:`~gentlerl.rewards.model_step.ModelStep`)."""
         if self.per_member:
             tensordict = self.bootstrap(tensordict)
         with params.to_module(self.model, preserve_module_state=False):
@@ -139,13 +139,19 @@ class ICMLoss(LossModule):
         self.convert_to_functional(model, "model", create_target_params=False)
 
     def predict(
-        self, tensordict: TensorDictBase
+        self, tensordict: TensorDictBase, params: TensorDictBase | None = None
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        with self.model_params.to_module(self.model, preserve_module_state=False):
+        """The model's predictions with ``params`` (the structure of ``model_params``; its own
+        by default)."""
+        params = self.model_params if params is None else params
+        with params.to_module(self.model, preserve_module_state=False):
             return self.model.predict(tensordict)
 
-    def forward(self, tensordict: TensorDictBase) -> TensorDict:
-        predicted_action, predicted_next, next_phi = self.predict(tensordict)
+    def losses(self, tensordict: TensorDictBase, params: TensorDictBase) -> TensorDict:
+        """``loss_icm`` (and its two terms, detached) of the model whose parameters are
+        ``params``; a pure function of its inputs, so ``torch.vmap`` over a stack of ``params``
+        steps several seeds' models at once (:class:`~gentlerl.rewards.model_step.ModelStep`)."""
+        predicted_action, predicted_next, next_phi = self.predict(tensordict, params)
         inverse = nn.functional.mse_loss(predicted_action, tensordict.get(self.model.action_key))
         forward = 0.5 * (predicted_next - next_phi.detach()).pow(2).sum(-1).mean()
         return TensorDict(
@@ -156,3 +162,6 @@ class ICMLoss(LossModule):
             },
             batch_size=[],
         )
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        return self.losses(tensordict, self.model_params)

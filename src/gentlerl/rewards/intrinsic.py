@@ -112,11 +112,12 @@ class IntrinsicRewards(Rescoring):
         self.transform = RewardChain(
             *transforms, obs_key=ing.obs_key, force_key=force_key, device=self.device
         )
+        #: Each model's step, and this seed's row in it (0 unless :meth:`share_steps`).
         self._steps = {
             name: ModelStep(loss, settings.lr_model, **self._launch)
             for name, loss in self.losses.items()
         }
-        self.optimizers = {name: step.optimizer for name, step in self._steps.items()}
+        self._seat = 0
         #: The penalty's weight steered toward ``settings.tolerance`` (``multiplier=pid``).
         self.multiplier = (
             ImpactMultiplier(
@@ -192,8 +193,8 @@ class IntrinsicRewards(Rescoring):
     def model_batches(self) -> dict[str, TensorDictBase]:
         """Each model's training batch for one update, from the models' buffer: ``[E, B]`` for
         an ensemble (a bootstrap batch per member), ``[B]`` otherwise (``B``:
-        ``model_batch_size``). :meth:`update` steps each model on its batch; a seed group
-        (:mod:`gentlerl.training.seed_group`) stacks the seeds' batches into one step."""
+        ``model_batch_size``). :meth:`update` steps each model on its batch; a group of seeds
+        (:meth:`share_steps`) stacks the seeds' batches into one step."""
         if self.buffer is not None and len(self.buffer) == 0:
             raise RuntimeError(
                 "IntrinsicRewards.update() before any extend(): the models have no transition to "
@@ -215,10 +216,37 @@ class IntrinsicRewards(Rescoring):
         ``num_updates``: the count including this update (default: one more than the last);
         ``reward_delay`` and the target periods are counted in these updates.
         """
+        if any(step.num_seeds != 1 for step in self._steps.values()):
+            raise RuntimeError(
+                "IntrinsicRewards.update: these models step with other seeds' (share_steps); "
+                "the group's update steps them"
+            )
         batches = self.model_batches()
-        metrics = {f"model_{name}": self._steps[name](batch) for name, batch in batches.items()}
+        metrics = {
+            f"model_{name}": self._steps[name](batch.unsqueeze(0)).item()
+            for name, batch in batches.items()
+        }
         self.step(num_updates)
         return metrics
+
+    @property
+    def steps(self) -> dict[str, ModelStep]:
+        """Each model's :class:`~gentlerl.rewards.model_step.ModelStep` (shared by a group's
+        seeds after :meth:`share_steps`)."""
+        return dict(self._steps)
+
+    def share_steps(self, steps: Mapping[str, ModelStep], seat: int) -> None:
+        """Train this seed's models as row ``seat`` of ``steps`` (one per model, over several
+        seeds' losses, this one's among them), whose caller steps them; the state this seed
+        saves and loads is its row's."""
+        if set(steps) != set(self._steps):
+            raise ValueError(
+                f"share_steps: steps for {sorted(steps)}, models {sorted(self._steps)}"
+            )
+        for name, step in steps.items():
+            if step.losses[seat] is not self.losses[name]:
+                raise ValueError(f"share_steps: row {seat} of the {name!r} step is not this model")
+        self._steps, self._seat = dict(steps), seat
 
     def step(self, num_updates: int | None = None) -> None:
         """Call once after each model update, with the total update count (paper's schedule;
@@ -239,7 +267,7 @@ class IntrinsicRewards(Rescoring):
         """Models, optimisers and schedule (the buffer is saved with the other buffers)."""
         return {
             "losses": {name: loss.state_dict() for name, loss in self.losses.items()},
-            "optimizers": {name: o.state_dict() for name, o in self.optimizers.items()},
+            "optimizers": {n: st.optimizer_state(self._seat) for n, st in self._steps.items()},
             "active": self.intrinsic_on,
             "target_counters": {name: u.counter for name, u in self._updaters.items()},
             "num_updates": self.num_updates,
@@ -250,7 +278,7 @@ class IntrinsicRewards(Rescoring):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         for name, loss in self.losses.items():
             loss.load_state_dict(state["losses"][name])
-            self._steps[name].load_optimizer_state(state["optimizers"][name])
+            self._steps[name].load_optimizer_state(state["optimizers"][name], self._seat)
         for t in self.gated_transforms:
             t.active.fill_(bool(state["active"]))
         for name, counter in state["target_counters"].items():

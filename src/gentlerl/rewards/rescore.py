@@ -112,7 +112,7 @@ class Rescoring:
     def mark_windows_rescored(self) -> None:
         """Record that this object's :attr:`rescored` rewards were scored again at sampling by a
         scorer of several seeds' batches at once
-        (:class:`~gentlerl.rewards.seed_rescore.SeedBatchedRescore`), as
+        (:class:`~gentlerl.rewards.window_rescore.WindowRescorer`), as
         :meth:`rescore_windows` records it for one."""
         self._rescored_windows = True
 

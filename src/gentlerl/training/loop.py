@@ -7,13 +7,15 @@ evaluate -> checkpoint. The models learn from 1-step transitions (:class:`Intrin
 learner from n-step ones (the prioritised buffer, written through an ``NStepWriter``). Updates
 start after ``init_random_frames``; each frame then earns ``utd_ratio`` updates. Files go where
 :class:`~gentlerl.config.layout.RunLayout` names.
+
+A :class:`Trainer` is one seed's run: its state and each batch's steps. Its :meth:`~Trainer.run`
+is a :class:`~gentlerl.training.lockstep.Lockstep` of one seed, the driver that also runs several
+seeds in one process with each update one step of all of them.
 """
 
 from __future__ import annotations
 
 import time
-from collections import defaultdict
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -39,29 +41,16 @@ from gentlerl.training.builders import (
 from gentlerl.training.checkpoint import remove_stale_temp_files, save_checkpoint
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.env_probe import probe_env
+from gentlerl.training.lockstep import Lockstep, LoopPass
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
 
 
-@dataclass
-class LoopPass:
-    """One pass of the loop: what it collects from and logs to, its clocks and pending logs."""
-
-    collector: Any
-    logger: RunLogger
-    eval_env: Any
-    progress: Progress
-    wall: float
-    next_sync: int
-    start: float = field(default_factory=time.perf_counter)
-    pending: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
-    erase_timer: bool = True  # a seed group times its updates once for every seed
-
-
 class Trainer:
-    """Holds a run's state; :meth:`run` executes (or resumes) it. See :func:`train`, which
-    validates the config and probes the env once and passes the probe; without one, both are
-    done here."""
+    """One seed's run: its state, and each batch's steps; :meth:`run` executes (or resumes) it.
+    See :func:`train`, which validates the config and probes the env once and passes the probe;
+    without one, both are done here. In a :class:`~gentlerl.training.lockstep.Lockstep` of
+    several seeds its :attr:`learner` is the seeds' one, its own row :attr:`seat`."""
 
     def __init__(
         self, cfg: TrainConfig, env_factory: EnvFactory | None = None, probe: EnvBase | None = None
@@ -79,6 +68,7 @@ class Trainer:
             join_cluster(cfg.collector.ray_address)
         self.layout.root.mkdir(parents=True, exist_ok=True)
         self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
+        self.seat = 0  # this seed's row of the learner's and the models' stacked parameters
         self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
         self.wall_s = 0.0  # training wall clock, resumes included (``train/wall_s``)
@@ -89,12 +79,17 @@ class Trainer:
     def run(self) -> dict[str, float]:
         """Collect up to ``collector.total_frames``, evaluate the last actor, write ``DONE``;
         a finished run is not run again (its final evaluation is returned)."""
-        finished, logger, eval_env = self.open()
-        if finished is not None:
-            return finished
-        if self.cfg.collector.total_frames > self.counters["frames"]:
-            self._collect(logger, eval_env)
-        return self.close(logger, eval_env)
+        return Lockstep([self]).run()[0]
+
+    @property
+    def policy(self) -> Any:
+        """This seed's acting actor (on the CPU)."""
+        return self.learner.policy_of(self.seat)
+
+    @property
+    def loss(self) -> Any:
+        """This seed's D4PG loss (its actor, critics and their targets)."""
+        return self.learner.losses[self.seat]
 
     def open(self) -> tuple[dict[str, float] | None, Any, Any]:
         """Resume (a finished run: its final evaluation, nothing opened), then the logger and
@@ -130,27 +125,8 @@ class Trainer:
 
     def make_collector(self) -> Any:
         """The run's collector, acting with the learner's policy, from the frames so far."""
-        policy, frames = self.builder.make_policy(self.learner), self.counters["frames"]
+        policy, frames = self.builder.make_policy(self.learner, self.seat), self.counters["frames"]
         return make_run_collector(self.cfg, self.env_factory, policy, frames)
-
-    def _collect(self, logger: RunLogger, eval_env: Any) -> None:
-        collector = self.make_collector()
-        try:
-            self._loop(collector, logger, eval_env)
-        except ChildProcessError as err:  # a collector process was killed: the run can go on
-            raise guards.resumable_fault(err, self.layout.checkpoint) from err
-        finally:  # also on a worker's error: no env processes or Ray actors left behind
-            collector.shutdown()
-
-    def _loop(self, collector: Any, logger: RunLogger, eval_env: Any) -> None:
-        """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
-        p = self.start_pass(collector, logger, eval_env)
-        for batch in collector:
-            frames = self.take(batch, p)
-            if self.learning():
-                self._earn_updates(frames, p.pending)
-            self.finish_batch(frames, p)
-        p.progress.close()
 
     def start_pass(
         self, collector: Any, logger: RunLogger, eval_env: Any, bar: int | None = None
@@ -180,7 +156,7 @@ class Trainer:
         """After a batch's updates: the actors synced, logs, evaluation and checkpoint when due."""
         cfg, c = self.cfg, self.counters
         if self.learning():
-            self.learner.sync_policy()  # the acting copy of a GPU learner's actor
+            self.learner.sync_policy(self.seat)  # the acting copy of a GPU learner's actor
             p.next_sync = self._sync_policy(p.collector, p.next_sync)
         self._log_training(p)
         self.wall_s = p.wall + time.perf_counter() - p.start
@@ -214,15 +190,6 @@ class Trainer:
             c["frames"] > cfg.collector.init_random_frames and len(self.rb) >= cfg.replay.batch_size
         )
 
-    def _earn_updates(self, frames: int, pending: dict[str, list[float]]) -> None:
-        """``utd_ratio`` updates per collected frame (fractions carried to the next batch)."""
-        c = self.counters
-        c["update_credit"] += self.cfg.learner.utd_ratio * frames
-        while c["update_credit"] >= 1:
-            c["update_credit"] -= 1
-            for k, v in self.update().items():
-                pending[k].append(v)
-
     def _sync_policy(self, collector: Any, next_sync: int) -> int:
         """Send the actor to the workers (multi: each batch; ray: each ``weight_sync_every``
         updates); returns the update count of the next Ray sync."""
@@ -231,18 +198,6 @@ class Trainer:
             collector.update_policy_weights_()
             return updates + col.weight_sync_every
         return next_sync
-
-    def update(self) -> dict[str, float]:
-        """One update: every model (then the rewards' schedule), then the D4PG learner."""
-        with timeit("update"):
-            metrics = self.rewards.update(self.counters["updates"] + 1)
-            batch = self.rb.sample()
-            metrics.update(self.rewards.rescore_windows(batch, self.cfg.learner.gamma))
-            out = self.learner.update(batch)
-            self.rb.update_tensordict_priority(batch)
-            if self.beta_schedule is not None:
-                self.beta_schedule.step()
-        return self.count_update(metrics, out, batch)
 
     def count_update(
         self, metrics: dict[str, float], out: TensorDictBase, batch: TensorDictBase
@@ -267,8 +222,6 @@ class Trainer:
         scalars["train/updates_per_s"] = 1.0 / max(timeit.todict()["update"], 1e-9)
         p.logger.log(scalars, self.counters["frames"])
         pending.clear()
-        if p.erase_timer:
-            timeit.erase()
 
     # -- state ---------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:

@@ -1,7 +1,7 @@
 """A run's evaluations during training: the actor's noise-free episodes logged (with each critic
 head's prediction against what they returned), kept in the run's history, the best actor saved,
-and the penalty's multiplier steered on episodes; for :class:`~gentlerl.training.loop.Trainer`
-(and each seed of a seed group)."""
+and the penalty's multiplier steered on episodes; for each seed's run
+(:class:`~gentlerl.training.run_state.SeedRun`)."""
 
 from __future__ import annotations
 
@@ -13,12 +13,10 @@ from gentlerl.training.checkpoint import save_checkpoint
 from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.evaluation import evaluate, rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import RunLogger
-
-#: A :class:`~gentlerl.training.loop.Trainer` (not imported: the loop imports this module).
-Trainer = Any
+from gentlerl.training.run_state import SeedRun
 
 
-def final_evaluation(trainer: Trainer, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+def final_evaluation(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict[str, float]:
     """The last batch's evaluation where it was at the final frame, else a new one."""
     last = trainer.eval_history[-1] if trainer.eval_history else {"frames": -1}
     if last["frames"] == trainer.counters["frames"]:
@@ -26,16 +24,16 @@ def final_evaluation(trainer: Trainer, logger: RunLogger, eval_env: Any) -> dict
     return evaluate_run(trainer, logger, eval_env)
 
 
-def evaluate_run(trainer: Trainer, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+def evaluate_run(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict[str, float]:
     """``logging.eval_episodes`` noise-free episodes of the acting actor, logged and ranked."""
     episodes = trainer.cfg.logging.eval_episodes
-    policy, horizon = trainer.learner.policy, trainer.builder.horizon
+    policy, horizon = trainer.policy, trainer.builder.horizon
     rollouts = rollout_episodes(eval_env, policy, episodes, horizon)
     summary, per_episode = summarize_episodes(rollouts)
     frames = trainer.counters["frames"]
     logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
     # The same episodes: each critic head's predicted Q against its realised return.
-    loss, gamma = trainer.learner.loss, trainer.cfg.learner.gamma
+    loss, gamma = trainer.loss, trainer.cfg.learner.gamma
     logger.log(evaluation_scalars(loss, trainer.rewards.transform, rollouts, gamma), frames)
     logger.log_eval_episodes(frames, per_episode)
     trainer.eval_history.append({"frames": frames, **summary})
@@ -43,7 +41,7 @@ def evaluate_run(trainer: Trainer, logger: RunLogger, eval_env: Any) -> dict[str
     return summary
 
 
-def keep_best(trainer: Trainer, result: dict[str, float]) -> None:
+def keep_best(trainer: SeedRun, result: dict[str, float]) -> None:
     """Save the actor to ``best_policy.pt`` when this evaluation beats every earlier one
     (:func:`~gentlerl.training.evaluation.rank`): DDPG can lose a solved task later on."""
     if trainer.best_eval is not None and rank(result) <= rank(trainer.best_eval):
@@ -54,7 +52,7 @@ def keep_best(trainer: Trainer, result: dict[str, float]) -> None:
 
 
 def steer(
-    trainer: Trainer, episodes: list[dict[str, float]], logger: RunLogger, eval_env: Any
+    trainer: SeedRun, episodes: list[dict[str, float]], logger: RunLogger, eval_env: Any
 ) -> None:
     """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``),
     or with ``multiplier_episodes`` after that many noise-free episodes at each PID step."""
@@ -64,8 +62,8 @@ def steer(
     if not episodes and multiplier.period is None:
         return  # stepped per episode
     if n := trainer.cfg.gentleness.multiplier_episodes:  # the deployed policy's cost
-        policy, horizon = trainer.learner.policy, trainer.builder.horizon
+        policy, horizon = trainer.policy, trainer.builder.horizon
         episodes = evaluate(eval_env, policy, n, horizon)[1] if multiplier.due(frames) else []
     weight = multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
-    trainer.learner.loss.set_head_weight(keys.PENALTY, weight)
+    trainer.loss.set_head_weight(keys.PENALTY, weight)
     logger.log({f"train/{k}": v for k, v in multiplier.scalars().items()}, frames)

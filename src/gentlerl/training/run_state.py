@@ -1,11 +1,12 @@
 """A run's state as a checkpoint holds it: what a resumed :class:`~gentlerl.training.loop.Trainer`
 needs (networks, optimisers, rewards' models and multiplier, buffers, counters, RNG), and what a
-policy file keeps (config, sizes, actor)."""
+policy file keeps (config, sizes, actor); and :class:`SeedRun`, what every part of the loop reads
+of one seed's run."""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from gentlerl import keys
 from gentlerl.agent.learner import TrainingState
@@ -18,28 +19,65 @@ from gentlerl.training.checkpoint import (
 )
 from gentlerl.training.seeding import rng_state, set_rng_state
 
-#: A :class:`~gentlerl.training.loop.Trainer` (not imported: the loop imports this module).
-Trainer = Any
+if TYPE_CHECKING:
+    from torchrl.data import ReplayBuffer
+    from torchrl.data.replay_buffers.scheduler import LinearScheduler
+
+    from gentlerl.agent import AgentBuilder, Learner
+    from gentlerl.config.layout import RunLayout
+    from gentlerl.data import NStepWriter
+    from gentlerl.objectives import MultiHeadD4PGLoss
+    from gentlerl.rewards import IntrinsicRewards
+    from gentlerl.training.config import TrainConfig
 
 
-def policy_state(trainer: Trainer) -> dict[str, Any]:
+class SeedRun(Protocol):
+    """One seed's run as the loop's parts read it (:class:`~gentlerl.training.loop.Trainer` is
+    the one implementation): its config and files, its agent's parts, and the state a checkpoint
+    keeps. Its :attr:`learner` may train other seeds too: :attr:`seat` is its row."""
+
+    cfg: TrainConfig
+    layout: RunLayout
+    builder: AgentBuilder
+    learner: Learner
+    seat: int
+    rewards: IntrinsicRewards
+    rb: ReplayBuffer
+    writer: NStepWriter
+    beta_schedule: LinearScheduler | None
+    counters: dict[str, Any]
+    wall_s: float
+    eval_history: list[dict[str, float]]
+    best_eval: dict[str, float] | None
+    resume_state: dict[str, Any] | None
+
+    @property
+    def policy(self) -> Any: ...  # this seed's acting actor
+
+    @property
+    def loss(self) -> MultiHeadD4PGLoss: ...  # this seed's D4PG loss
+
+    def learning(self) -> bool: ...
+
+
+def policy_state(trainer: SeedRun) -> dict[str, Any]:
     """What :func:`~gentlerl.training.checkpoint.load_policy` reads: config, sizes, actor."""
     return {
         "config": trainer.cfg.to_dict(),
         "obs_dim": trainer.builder.obs_dim,
         "action_dim": trainer.builder.action_dim,
-        "actor": trainer.learner.policy.state_dict(),
+        "actor": trainer.policy.state_dict(),
     }
 
 
-def trainer_state(trainer: Trainer) -> dict[str, Any]:
+def trainer_state(trainer: SeedRun) -> dict[str, Any]:
     """Everything a resumed run needs; the replay buffers only with ``checkpoint_buffer``."""
     keep = trainer.cfg.logging.checkpoint_buffer
     buffer = trainer.rewards.buffer if keep else None
     return {
         **policy_state(trainer),
-        "learner": dataclasses.asdict(trainer.learner.state),
-        "supports": critic_supports(trainer.learner.loss.value_network),
+        "learner": dataclasses.asdict(trainer.learner.state_of(trainer.seat)),
+        "supports": critic_supports(trainer.loss.value_network),
         "intrinsic": trainer.rewards.state_dict(),
         "rb": replay_buffer_state(trainer.rb) if keep else None,
         "nstep": trainer.writer.state_dict() if keep else None,
@@ -53,13 +91,13 @@ def trainer_state(trainer: Trainer) -> dict[str, Any]:
     }
 
 
-def load_trainer_state(trainer: Trainer, state: dict[str, Any]) -> None:
+def load_trainer_state(trainer: SeedRun, state: dict[str, Any]) -> None:
     """Restore :func:`trainer_state`'s ``state`` into ``trainer`` (its checks first)."""
-    check_critic_supports(state, trainer.learner.loss.value_network, trainer.layout.checkpoint)
-    trainer.learner.restore(TrainingState(**state["learner"]))
+    check_critic_supports(state, trainer.loss.value_network, trainer.layout.checkpoint)
+    trainer.learner.restore(TrainingState(**state["learner"]), trainer.seat)
     trainer.rewards.load_state_dict(state["intrinsic"])
     if trainer.rewards.multiplier is not None:  # the actor's objective as it was saved
-        trainer.learner.loss.set_head_weight(keys.PENALTY, trainer.rewards.multiplier.weight)
+        trainer.loss.set_head_weight(keys.PENALTY, trainer.rewards.multiplier.weight)
     if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
         load_replay_buffer_state(trainer.rb, state["rb"], trainer.layout.checkpoint)
         trainer.writer.load_state_dict(state["nstep"])

@@ -1,4 +1,4 @@
-"""SeedBatchedRescore: S seeds' windows re-scored for r^sp (one vmapped forward, or seed by seed on
+"""WindowRescorer: S seeds' windows re-scored for r^sp (one vmapped forward, or seed by seed on
 a CPU) equal S calls of IntrinsicRewards.rescore_windows, each seed under its own target model."""
 
 import pytest
@@ -8,7 +8,7 @@ from gentlerl import keys
 from gentlerl.config import GentlenessConfig
 from gentlerl.data import NStepWriter, make_replay_buffer
 from gentlerl.rewards import IntrinsicRewards
-from gentlerl.rewards.seed_rescore import SeedBatchedRescore
+from gentlerl.rewards.window_rescore import WindowRescorer
 from tests.data.test_windows import _trajectory
 
 SEEDS = (0, 1, 2)
@@ -57,7 +57,7 @@ def test_the_batched_rescoring_equals_each_seeds_own(settings, vmapped):
     singles, grouped, batches = _both(**settings)
     copies = [b.clone() for b in batches]
     expected = [r.rescore_windows(b, 0.9) for r, b in zip(singles, batches, strict=True)]
-    stacked, got = SeedBatchedRescore(grouped, vmapped=vmapped)(copies, 0.9)
+    stacked, got = WindowRescorer(grouped, vmapped=vmapped)(copies, 0.9)
     assert stacked.batch_size == (len(SEEDS), 9)
     for s in range(len(SEEDS)):
         torch.testing.assert_close(
@@ -76,7 +76,7 @@ def test_the_batched_rescoring_equals_each_seeds_own(settings, vmapped):
 
 def test_a_target_copy_reaches_the_stack_and_the_gate_is_each_seeds():
     singles, grouped, batches = _both(penalty_target_period=1)
-    rescore = SeedBatchedRescore(grouped, vmapped=True)
+    rescore = WindowRescorer(grouped, vmapped=True)
     for r in (singles[1], grouped[1]):  # seed 1's model moves; its next update copies it
         with torch.no_grad():
             r.losses["penalty"].model_params.apply_(lambda p: p.add_(0.1))
@@ -97,13 +97,13 @@ def test_a_target_copy_reaches_the_stack_and_the_gate_is_each_seeds():
 
 def test_a_batch_per_seed_is_needed_and_the_cpu_scores_seed_by_seed():
     grouped = [_rewards(s) for s in SEEDS]
-    rescore = SeedBatchedRescore(grouped)
+    rescore = WindowRescorer(grouped)
     assert not rescore.vmapped and rescore.params == []  # CPU models: no stack, no shared rows
     with pytest.raises(ValueError, match=r"one batch per seed \(3\), got 1"):
         rescore([_batch(grouped[0], 0)], 0.9)
     other = [grouped[0], _rewards(1, lam_prime=(2.0, 3.0)), grouped[2]]
     with pytest.raises(ValueError, match=r"the rewards of seeds \[1\] differ from seed 0's"):
-        SeedBatchedRescore(other, vmapped=True)
+        WindowRescorer(other, vmapped=True)
     no_window = [_batch(r, s).exclude("window") for r, s in zip(grouped, SEEDS, strict=True)]
     with pytest.raises(KeyError, match="needs each transition's window of steps"):
-        SeedBatchedRescore(grouped, vmapped=True)(no_window, 0.9)
+        WindowRescorer(grouped, vmapped=True)(no_window, 0.9)

@@ -1,13 +1,13 @@
-"""``SeedBatchedRescore``: S seeds' sampled n-step windows re-scored for r^sp, on a GPU as one
-vmapped forward of their target penalty ensembles.
+"""``WindowRescorer``: the sampled n-step windows of S seeds (S = 1 for one run) re-scored for
+r^sp, on a GPU as one vmapped forward of their target penalty ensembles.
 
-A seed group (:mod:`gentlerl.training.seed_group`) samples one batch per seed and stacks them
-``[S, B]``. Each seed's penalty surprise (eq. 8) must be scored again with that seed's own target
-penalty model (:meth:`~gentlerl.rewards.IntrinsicRewards.rescore_windows` does it for one
-seed). Vmapped, the S target models' parameters are stacked on a seed dimension (each seed's own
-target tensors then share its row, so ``HardUpdate``'s in-place copies land in the stack) and one
-``torch.vmap`` of :meth:`~gentlerl.transforms.PenaltySurprise.curiosity` scores every window
-step of every seed: one model's kernels, S times wider, and one host read per update (the seeds'
+The loop samples one batch per seed and stacks them ``[S, B]``. Each seed's penalty surprise
+(eq. 8) must be scored again with that seed's own target penalty model
+(:meth:`~gentlerl.rewards.IntrinsicRewards.rescore_windows` does it for one seed). Vmapped, the
+S target models' parameters are stacked on a seed axis (each seed's own target tensors then
+share its row, so the target updater's in-place copies land in the stack) and one ``torch.vmap``
+of :meth:`~gentlerl.transforms.PenaltySurprise.curiosity` scores every window step of every
+seed: one model's kernels, S times wider, and one host read per update (the seeds'
 per-contact-step means, read together; with ``curiosity_norm`` also each seed's running scale),
 instead of S forwards each behind a data-dependent selection.
 
@@ -29,15 +29,15 @@ import torch
 from tensordict import TensorDictBase
 
 from gentlerl.data import contact_step_sum, nstep_return, window_of
-from gentlerl.models.stacking import share_rows, stack_parameters
+from gentlerl.models.stacking import seed_stack, share_rows, stack_parameters
 from gentlerl.transforms import PenaltySurprise
 
 if TYPE_CHECKING:
     from gentlerl.rewards.intrinsic import IntrinsicRewards
 
 
-class SeedBatchedRescore:
-    """``rescore(batches, gamma)``: S seeds' sampled n-step transitions stacked ``[S, B]`` with
+class WindowRescorer:
+    """``rescorer(batches, gamma)``: S seeds' sampled n-step transitions stacked ``[S, B]`` with
     their r^sp recomputed from their windows, each seed with its own target penalty model; the
     same as S calls of ``rewards[s].rescore_windows(batches[s], gamma)``.
 
@@ -52,12 +52,12 @@ class SeedBatchedRescore:
 
     def __init__(self, rewards: Sequence[IntrinsicRewards], vmapped: bool | None = None) -> None:
         if len(rewards) < 1:
-            raise ValueError("SeedBatchedRescore needs at least one seed's rewards, got 0")
+            raise ValueError("WindowRescorer needs at least one seed's rewards, got 0")
         first = (rewards[0].reward_keys, rewards[0].settings)
         differ = [s for s, r in enumerate(rewards) if (r.reward_keys, r.settings) != first]
         if differ:
             raise ValueError(
-                f"SeedBatchedRescore: the rewards of seeds {differ} differ from seed 0's in their "
+                f"WindowRescorer: the rewards of seeds {differ} differ from seed 0's in their "
                 "variant or gentleness settings; a group's seeds share both"
             )
         per_seed = [list(r.rescored) for r in rewards]
@@ -84,15 +84,14 @@ class SeedBatchedRescore:
         batch has no contact)."""
         if len(batches) != self.num_seeds:
             raise ValueError(
-                f"SeedBatchedRescore needs one batch per seed ({self.num_seeds}), got "
-                f"{len(batches)}"
+                f"WindowRescorer needs one batch per seed ({self.num_seeds}), got {len(batches)}"
             )
         if not self.vmapped:  # each seed on its contact rows only, then stacked
             metrics = [
                 r.rescore_windows(b, gamma) for r, b in zip(self.rewards, batches, strict=True)
             ]
-            return torch.stack(list(batches)), metrics
-        batch = torch.stack(list(batches))
+            return seed_stack(batches), metrics
+        batch = seed_stack(batches)
         return batch, self._vmapped(batch, gamma)
 
     def _vmapped(self, batch: TensorDictBase, gamma: float) -> list[dict[str, float]]:

@@ -1,0 +1,185 @@
+"""Several seeds' runs in lockstep, their updates one step: the loop's driver.
+
+:class:`Lockstep` runs S seeds' :class:`~gentlerl.training.loop.Trainer` s (S = 1 for
+``gentlerl train``) over one collector each: each batch is rewarded, stored, logged and
+evaluated per seed, and each update is one step of every seed: the S reward models of each kind
+as one :class:`~gentlerl.rewards.model_step.ModelStep`, the r^sp re-scoring through one
+:class:`~gentlerl.rewards.window_rescore.WindowRescorer`, the S D4PG learners as one
+:class:`~gentlerl.agent.Learner` (parameters with a leading seed axis).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from torchrl import timeit
+
+from gentlerl.agent import Learner
+from gentlerl.models.stacking import seed_stack
+from gentlerl.rewards.model_step import ModelStep
+from gentlerl.rewards.window_rescore import WindowRescorer
+from gentlerl.training import guards
+from gentlerl.training.logging import Progress, RunLogger
+from gentlerl.training.run_state import SeedRun
+
+
+@dataclass
+class LoopPass:
+    """One pass of the loop: what it collects from and logs to, its clocks and pending logs."""
+
+    collector: Any
+    logger: RunLogger
+    eval_env: Any
+    progress: Progress
+    wall: float
+    next_sync: int
+    start: float = field(default_factory=time.perf_counter)
+    pending: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+
+
+class Lockstep:
+    """The runs of ``trainers`` (one variant and its settings, a seed each) in lockstep:
+    :meth:`run`.
+
+    Each seed keeps what a run of its own has: its env stream (its collector, seeded by its
+    seed), its exploration noise, replay buffers, reward transforms, evaluations, logs and
+    checkpoints in its own run directory. Their updates are one: with several seeds, one
+    :class:`~gentlerl.agent.Learner` and one :class:`~gentlerl.rewards.model_step.ModelStep` per
+    model kind are built over every seed's networks, each seed training its own row, and each
+    seed's checkpoint holds its own row: a run of its own. A loop of several seeds shares the
+    process's random stream, so its numbers are its own and reproduce themselves for the same
+    seeds; per seed, not batched: collection, the replay's sample and priority update,
+    evaluations.
+    """
+
+    def __init__(self, trainers: Sequence[SeedRun]) -> None:
+        if not trainers:
+            raise ValueError("Lockstep needs at least one Trainer (one per seed), got 0")
+        self.trainers = list(trainers)
+        starts = {t.resume_state["counters"]["frames"] if t.resume_state else 0 for t in trainers}
+        if len(starts) > 1:  # before anything is written
+            raise ValueError(
+                f"the seeds' checkpoints are at different frames {sorted(starts)}: resume each "
+                "seed on its own, or start the group in new run_dirs"
+            )
+        if len(self.trainers) > 1:
+            self._share()
+        self.learner = self.trainers[0].learner
+        self.models = self.trainers[0].rewards.steps
+        self.rescorer = WindowRescorer([t.rewards for t in self.trainers])
+        self._priority_key = self.learner.loss.tensor_keys.priority
+
+    def _share(self) -> None:
+        """One learner and one step per model kind over every seed's networks; seed s row s."""
+        trainers, cfg = self.trainers, self.trainers[0].cfg
+        launch = {"compile": cfg.learner.compile, "cudagraphs": cfg.learner.cudagraphs}
+        learner = Learner(
+            [t.loss for t in trainers],
+            lr_actor=cfg.learner.lr_actor,
+            lr_critic=cfg.learner.lr_critic,
+            target_update_period=cfg.learner.target_update_period,
+            **launch,
+        )
+        steps = {
+            name: ModelStep(
+                [t.rewards.losses[name] for t in trainers], cfg.gentleness.lr_model, **launch
+            )
+            for name in trainers[0].rewards.losses
+        }
+        for seat, trainer in enumerate(trainers):
+            trainer.learner, trainer.seat = learner, seat
+            trainer.rewards.share_steps(steps, seat)
+
+    def run(self) -> list[dict[str, float]]:
+        """Every seed's run to ``collector.total_frames`` (resumed where its checkpoint is);
+        each seed's final evaluation (a finished run's is read, not run again)."""
+        opened = [trainer.open() for trainer in self.trainers]
+        finished = [summary for summary, _, _ in opened]
+        if all(summary is not None for summary in finished):
+            return finished
+        if any(summary is not None for summary in finished):
+            done = [t.cfg.seed for t, f in zip(self.trainers, finished, strict=True) if f]
+            raise ValueError(f"seeds {done} finished, the others did not: resume each on its own")
+        first = self.trainers[0]
+        if first.cfg.collector.total_frames > first.counters["frames"]:
+            self._collect([(logger, eval_env) for _, logger, eval_env in opened])
+        return [
+            trainer.close(logger, eval_env)
+            for trainer, (_, logger, eval_env) in zip(self.trainers, opened, strict=True)
+        ]
+
+    def _collect(self, opened: list[tuple[RunLogger, Any]]) -> None:
+        """Each seed's collector made, the loop run over them, every collector shut down."""
+        collectors: list[Any] = []
+        several = len(self.trainers) > 1
+        try:
+            collectors.extend(trainer.make_collector() for trainer in self.trainers)
+            passes = [
+                t.start_pass(c, logger, eval_env, bar=s if several else None)
+                for s, (t, c, (logger, eval_env)) in enumerate(
+                    zip(self.trainers, collectors, opened, strict=True)
+                )
+            ]
+            self._loop(collectors, passes)
+        except ChildProcessError as err:  # a collector process was killed: the run can go on
+            raise guards.resumable_fault(err, self.trainers[0].layout.checkpoint) from err
+        finally:  # also on a worker's error: no env processes or Ray actors left behind
+            for collector in collectors:
+                collector.shutdown()
+
+    def _loop(self, collectors: list[Any], passes: list[LoopPass]) -> None:
+        """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
+        for batches in zip(*collectors, strict=True):
+            frames = [t.take(b, p) for t, b, p in zip(self.trainers, batches, passes, strict=True)]
+            if all(t.learning() for t in self.trainers):
+                self._earn_updates(frames[0], passes)
+            for trainer, n, p in zip(self.trainers, frames, passes, strict=True):
+                trainer.finish_batch(n, p)
+            if not passes[0].pending:  # the training logs were written: the timer restarts
+                timeit.erase()
+        for p in passes:
+            p.progress.close()
+
+    def _earn_updates(self, frames: int, passes: list[LoopPass]) -> None:
+        """``utd_ratio`` updates per collected frame of each seed (fractions carried over)."""
+        for trainer in self.trainers:
+            trainer.counters["update_credit"] += trainer.cfg.learner.utd_ratio * frames
+        while self.trainers[0].counters["update_credit"] >= 1:
+            for trainer in self.trainers:
+                trainer.counters["update_credit"] -= 1
+            for p, metrics in zip(passes, self.update(), strict=True):
+                for k, v in metrics.items():
+                    p.pending[k].append(v)
+
+    def update(self) -> list[dict[str, float]]:
+        """One update of every seed: its models (then the rewards' schedule), r^sp re-scored on
+        its sampled windows, then its D4PG learner; each kind as one step."""
+        trainers = self.trainers
+        with timeit("update"):
+            metrics: list[dict[str, float]] = [{} for _ in trainers]
+            model_batches = [t.rewards.model_batches() for t in trainers]
+            for name, step in self.models.items():
+                losses = step(seed_stack([b[name] for b in model_batches])).tolist()
+                for seed_metrics, loss in zip(metrics, losses, strict=True):
+                    seed_metrics[f"model_{name}"] = loss
+            for trainer in trainers:
+                trainer.rewards.step(trainer.counters["updates"] + 1)
+            batches = [t.rb.sample() for t in trainers]
+            stacked, rescored = self.rescorer(batches, trainers[0].cfg.learner.gamma)
+            for seed_metrics, seed_rescored in zip(metrics, rescored, strict=True):
+                seed_metrics.update(seed_rescored)
+            out = self.learner.update(stacked)
+            priority = stacked.get(self._priority_key)
+            for s, (trainer, batch) in enumerate(zip(trainers, batches, strict=True)):
+                batch.set(self._priority_key, priority[s])
+                trainer.rb.update_tensordict_priority(batch)
+                if trainer.beta_schedule is not None:
+                    trainer.beta_schedule.step()
+        return [
+            trainer.count_update(seed_metrics, out[s], stacked[s])
+            for s, (trainer, seed_metrics) in enumerate(zip(trainers, metrics, strict=True))
+        ]
