@@ -1,4 +1,4 @@
-"""The ``gentlerl`` command: ``gentlerl {train,seeds,sweep,plot,video,evaluate,claims,table,...}``.
+"""The ``gentlerl`` command: ``gentlerl {train,seeds,sweep,plot,video,evaluate,claims,...}``.
 
 Each subcommand is a module's ``main(argv, prog)`` in :mod:`gentlerl.apps`;
 ``gentlerl COMMAND --help`` prints that command's options with their defaults. Modules are imported
@@ -30,7 +30,7 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "claims": ("gentlerl.apps.claims", "the paper's six claims judged on a reproduce.sh grid"),
     "table": (
         "gentlerl.apps.table",
-        "a pre-registered grid's table (SAC, GentleBench, Method III) with its verdicts",
+        "moved in 0.2.0: names the experiments/ script printing a grid's table",
     ),
     "export": (
         "gentlerl.apps.export",

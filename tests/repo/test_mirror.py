@@ -1,7 +1,8 @@
 """The tests mirror the package: each module ``gentlerl/<package>/<module>.py`` has a test in
 ``tests/<package>/``: ``test_<module>.py`` (or ``test_<module>_*.py``), or a test file there that
 imports the module or a name it defines, or whose docstring names it (``<package>.<module>``).
-A top-level module's folder is ``tests/`` (and ``tests/repo/``). The modules without such a test
+A top-level module's folder is ``tests/`` (and ``tests/repo/``); ``tests/experiments/`` tests the
+checkout's ``experiments/``. The modules without such a test
 when the tests were laid out this way are listed in :data:`WITHOUT_A_TEST`; the list only shrinks.
 """
 
@@ -21,7 +22,6 @@ WITHOUT_A_TEST = {
     "gentlerl.apps.closing",  # the run's closing lines: tests/repo/test_clean_console.py
     "gentlerl.apps.outputs",
     "gentlerl.apps.parsing",
-    "gentlerl.apps.table",  # `gentlerl table`: tests/analysis/test_grid_verdicts.py
     "gentlerl.apps.train",  # the hydra app: tests/config/test_config.py
     "gentlerl.config.layout",  # RunLayout: tests/training/test_builders.py, test_logging.py
     "gentlerl.config.limits",  # size limits: tests/apps/test_overrides.py through `gentlerl train`
@@ -110,7 +110,9 @@ def test_every_module_has_a_test_in_the_folder_that_mirrors_it():
 def test_every_test_folder_mirrors_a_package():
     folders = {p.name for p in TESTS.iterdir() if (p / "__init__.py").exists()}
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
-    assert folders - packages == {"repo"}, f"test folders with no package: {folders - packages}"
+    # repo: the checkout's files; experiments: the checkout's experiments/, not a package of gentlerl
+    extra = folders - packages
+    assert extra == {"repo", "experiments"}, f"test folders with no package: {extra}"
     assert not packages - folders, f"packages with no test folder: {packages - folders}"
     stray = [p.name for p in TESTS.glob("test_*.py")
              if not (PACKAGE / f"{p.stem.removeprefix('test_').split('_')[0]}.py").exists()]  # fmt: skip

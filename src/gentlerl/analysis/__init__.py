@@ -6,11 +6,12 @@
 - :mod:`~gentlerl.analysis.curves` and :mod:`~gentlerl.analysis.summary`: learning curves and the
   summary table of a set of runs;
 - :mod:`~gentlerl.analysis.figures`: the figures and summary files of ``gentlerl plot``;
-- :mod:`~gentlerl.analysis.criteria`: the pre-registered criteria, one function per rule (the six
-  claims, the SAC grid, GentleBench);
-- :mod:`~gentlerl.analysis.claims`: the six claims judged on grids of runs (``gentlerl claims``);
-- :mod:`~gentlerl.analysis.grid_tables`: the SAC grid's and GentleBench's tables with their
-  verdicts (``gentlerl table``).
+- :mod:`~gentlerl.analysis.criteria`: the paper's six claims as pre-registered criteria, one
+  function per claim;
+- :mod:`~gentlerl.analysis.claims`: the six claims judged on grids of runs (``gentlerl claims``).
+
+The project's own experiments (the SAC grid, GentleBench, Method III) and their tables are not part
+of the library: they live in a checkout's ``experiments/`` folder.
 
 The commands themselves are in :mod:`gentlerl.apps`.
 """

@@ -1,21 +1,18 @@
-"""The pre-registered criteria as code, one function per rule.
+"""The paper's six claims as pre-registered criteria, one function per claim.
 
-- the six claims of docs/REPRODUCTION.md: a verdict per claim from runs grouped by
-  ``(task, variant)``, seeds pooled (:func:`judge`, one ``claimN`` function per claim). A verdict
-  is ``reproduced`` when every condition of the claim holds, ``partly`` when its weaker condition
-  holds, otherwise ``not reproduced``; a claim whose runs are missing is ``no data``;
-- the SAC grid of docs/SAC.md: :func:`sac_verdict`, one per task;
-- GentleBench of docs/GENTLEBENCH.md: :func:`gentlebench_verdict`, one per task and variant;
-- its Method III amendments: :mod:`gentlerl.analysis.method3_criteria`.
+A verdict per claim from runs grouped by ``(task, variant)``, seeds pooled (:func:`judge`, one
+``claimN`` function per claim). A verdict is ``reproduced`` when every condition of the claim
+holds, ``partly`` when its weaker condition holds, otherwise ``not reproduced``; a claim whose runs
+are missing is ``no data``. ``gentlerl claims`` applies them (:mod:`gentlerl.analysis.claims`).
 
-The tables these rules judge are :mod:`gentlerl.analysis.grid_tables` and
-:mod:`gentlerl.analysis.method3` (``gentlerl table``).
+The project's own experiments (the SAC grid, GentleBench, Method III) keep their criteria in the
+checkout's ``experiments/`` folder, not in the library.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -182,61 +179,18 @@ def _median(values: np.ndarray) -> float:
     return float(np.median(values)) if len(values) else NAN
 
 
-#: GentleBench: below this median return ``r`` has not learned its task (2 % of dm_control's 1000).
-GENTLEBENCH_R_LEARNS = 20.0
+#: Names that left this module in 0.2.0 -> the experiment that holds them now.
+_MOVED = {
+    "sac_verdict": "experiments/sac_grid/criteria.py",
+    "gentlebench_verdict": "experiments/gentlebench/criteria.py",
+    "GENTLEBENCH_R_LEARNS": "experiments/gentlebench/criteria.py",
+}
 
 
-def gentlebench_verdict(r: Mapping[str, float], other: Mapping[str, float]) -> str:
-    """docs/GENTLEBENCH.md's label for one variant against ``r`` on the same task.
-
-    Each row holds ``median_return`` (median over seeds of the per-run mean return) and
-    ``median_impact`` (median per-episode max impact, N). *keeps the return*: ``other``'s median
-    return >= 0.8 x ``r``'s; *gentler*: its median impact <= 0.5 x ``r``'s. Both: "gentle and as
-    good"; only *gentler*: "gentle but worse"; only *keeps*: "no gentleness gain"; else "neither".
-    When ``r``'s median return is below :data:`GENTLEBENCH_R_LEARNS` the return test says nothing:
-    "not judged: r does not learn at 30k" (with "; gentler" when that test holds).
-    """
-    gentler = other["median_impact"] <= 0.5 * r["median_impact"]
-    if r["median_return"] < GENTLEBENCH_R_LEARNS:
-        return "not judged: r does not learn at 30k" + ("; gentler" if gentler else "")
-    keeps = other["median_return"] >= 0.8 * r["median_return"]
-    return {
-        (True, True): "gentle and as good",
-        (False, True): "gentle but worse",
-        (True, False): "no gentleness gain",
-        (False, False): "neither",
-    }[(keeps, gentler)]
-
-
-def sac_verdict(task: str, r: Mapping[str, float], rsp: Mapping[str, float]) -> str:
-    """docs/SAC.md's verdict on one task from the ``r`` and ``r+rf+rsp`` rows of SAC.
-
-    Each row holds ``mean_success`` (mean over seeds of the final success) and
-    ``successful_impact`` (median over seeds of the median max impact of successful episodes, N;
-    nan when none succeeded). Both below 0.5 success: "SAC does not learn the task at this
-    budget". Success criterion: ``rsp``'s >= max(0.8 x ``r``'s, 0.5); impact criterion: ``rsp``'s
-    <= 0.75 x ``r``'s (claim 5's). Both: "gentleness transfers"; impact only: "gentler but less
-    successful"; else "not gentler". When ``r`` never succeeded (no impact to compare, a case added
-    after the first runs) the words say whether ``rsp`` is more successful. On ``fragile``, ``rsp``
-    ahead of ``r`` by >= 0.3 success adds "; helps on the fragile block" (claim 6's).
-    """
-    if r["mean_success"] < 0.5 and rsp["mean_success"] < 0.5:
-        return "SAC does not learn the task at this budget"
-    success = rsp["mean_success"] >= max(0.8 * r["mean_success"], 0.5)
-    if math.isnan(r["successful_impact"]):
-        return (
-            "more successful than r, which never succeeds; impacts not comparable"
-            if success
-            else "neither variant succeeds often enough to compare impacts"
+def __getattr__(name: str) -> object:
+    if name in _MOVED:
+        raise ImportError(
+            f"gentlerl.analysis.criteria.{name} moved out of the library in 0.2.0: it is in "
+            f"{_MOVED[name]} of a checkout"
         )
-    impact = rsp["successful_impact"] <= 0.75 * r["successful_impact"]
-    words = (
-        "gentleness transfers"
-        if success and impact
-        else "gentler but less successful"
-        if impact
-        else "not gentler"
-    )
-    if task == "fragile" and rsp["mean_success"] >= r["mean_success"] + 0.3:
-        words += "; helps on the fragile block"
-    return words
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Learning curves (paper Fig. 4): one panel per claim of docs/REPRODUCTION.md, at most
+"""Learning curves (paper Fig. 4): one panel per claim of :mod:`gentlerl.analysis.criteria`, at most
 :data:`MAX_BANDS` variants per panel, every evaluation a point with its spread over seeds.
 
 Evaluations happen every ``logging.eval_every_frames``; nothing is interpolated between them, so

@@ -25,7 +25,7 @@ from gentlerl.files import load_yaml
 
 Series = tuple[np.ndarray, np.ndarray]
 EVAL_SUCCESS = "eval/success_rate"
-#: docs/REPRODUCTION.md's primary lambda'_2 per task: the criteria judge ``r+rf+rsp`` at it.
+#: The primary lambda'_2 per task: the claims' criteria judge ``r+rf+rsp`` at it.
 PRIMARY_LAM2 = {"touch": 2.0, "fragile": 1.5, "explore": 2.0}
 
 

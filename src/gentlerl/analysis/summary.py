@@ -1,5 +1,5 @@
 """The summary table of ``gentlerl plot`` (``summary.csv`` / ``summary.md``): per variant, the
-numbers docs/REPRODUCTION.md's criteria judge, each from the selection it names.
+numbers the claims' criteria (:mod:`gentlerl.analysis.criteria`) judge, each from the selection it names.
 
 - ``final_*``: the final policy (:func:`gentlerl.analysis.runs.final_policy_episodes`;
   ``final_source`` says which episodes: ``evaluate`` = the 20 episodes of ``gentlerl evaluate``,

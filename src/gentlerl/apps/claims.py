@@ -1,4 +1,4 @@
-"""The paper's six claims judged by the pre-registered criteria of docs/REPRODUCTION.md.
+"""The paper's six claims judged by their pre-registered criteria (:mod:`gentlerl.analysis.criteria`).
 
     gentlerl claims [NAME=]RUNS_ROOT ... [--final-evals DIR] [--seeds 0,1] [--markdown OUT.md]
 

@@ -3,7 +3,7 @@
 ``POLICY`` is anything :func:`gentlerl.training.load_policy` reads (a run's ``checkpoint.pt`` or
 ``best_policy.pt``, or a shipped policy of ``gentlerl export``). The actor runs without exploration
 noise in the env its run trained on (its ``env.kwargs``, so the same physics regime), or on
-another task with ``--task`` or another physics regime with ``--regime`` (docs/REGIMES.md).
+another task with ``--task`` or another physics regime with ``--regime`` (:data:`gentlerl.envs.hand.REGIMES`).
 Prints the success rate, the broken rate and the median / p90 of the per-episode max impact (paper
 eq. 1, N); ``--episodes-csv`` also writes one row per episode (the columns of a run's
 ``eval_episodes.csv``, ``frames`` = the frames the policy trained for), which ``gentlerl plot``

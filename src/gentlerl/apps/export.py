@@ -4,7 +4,7 @@ Writes each run's final actor (its ``checkpoint.pt``) as a small policy file
 (:func:`gentlerl.training.checkpoint.export_policy`: config and actor weights; no replay buffer,
 critics or models) to ``OUT/<task>/<variant>/seed<k>.pt``. Penalty-surprise (``rsp``) variants are
 exported at their task's primary lambda'_2 (:data:`gentlerl.analysis.runs.PRIMARY_LAM2`, the value
-docs/REPRODUCTION.md's criteria judge) and skipped at the others, unless ``--all-lambdas``, which
+the claims' criteria judge) and skipped at the others, unless ``--all-lambdas``, which
 writes those to ``OUT/<task>/<variant>@lam<lambda'_2>/seed<k>.pt``. Evaluate a shipped policy with
 ``gentlerl evaluate OUT/touch/r+rf+rsp/seed0.pt --episodes 20``.
 """

@@ -6,8 +6,7 @@
 it prints, in the env's own newtons: the share of steps with contact, the per-step impact
 (paper eq. 1, the largest over the sensor sites) over contact steps, the per-episode max impact
 and the per-episode impact penalty (eq. 4, lambda = [2, 2]), as quantiles; then the
-``env.force_scale`` that the force-tolerance rule (:func:`tolerance_force_scale`,
-docs/GENTLEBENCH.md) implies, and the penalty per episode once the force is read in that unit.
+``env.force_scale`` that the force-tolerance rule (:func:`tolerance_force_scale`) implies, and the penalty per episode once the force is read in that unit.
 """
 
 from __future__ import annotations
@@ -85,7 +84,7 @@ def force_profile(
 
 
 def tolerance_force_scale(env_impact: float, reference_impact: float) -> float:
-    r"""The force-tolerance rule (docs/GENTLEBENCH.md): :math:`s = q_\text{hand} / q_\text{env}`.
+    r"""The force-tolerance rule: :math:`s = q_\text{hand} / q_\text{env}`.
 
     ``q`` is the median, over the random-action episodes that touch, of the episode's largest
     impact (N): "a random policy's typical worst hit on this env costs what it costs on the

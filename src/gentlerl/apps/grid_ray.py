@@ -22,7 +22,7 @@ def _run_on_node(run: GridRun, extra: Sequence[str]) -> int:
     if not run.run_dir.parent.is_dir():
         raise ClusterError(
             f"{run.run_dir.parent} does not exist on node {socket.gethostname()}: --out must be "
-            "on a filesystem shared by every node at the same path (docs/DISTRIBUTED.md)"
+            "on a filesystem shared by every node at the same path"
         )
     return run_point(run, extra)
 

@@ -11,8 +11,8 @@ parameter does not affect them). Keys and values are checked before anything run
 (:mod:`gentlerl.apps.sweep_files`), and each point's config is validated; an interrupted sweep
 kills its trainers' process groups. The same files work with ``wandb sweep`` / ``wandb agent``.
 The points run on a backend (:data:`BACKENDS`): ``local`` runs ``--workers`` at a time here,
-``ray`` runs each as a Ray task, on a local Ray or a cluster (:mod:`gentlerl.apps.grid_ray`,
-docs/DISTRIBUTED.md).
+``ray`` runs each as a Ray task, on a local Ray or a cluster (:mod:`gentlerl.apps.grid_ray`;
+``--out`` on a filesystem every node sees at the same path).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def build_parser(prog: str = "gentlerl sweep") -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--backend", choices=tuple(BACKENDS), default="local",
-        help="local: --workers processes here; ray: one Ray task per run (docs/DISTRIBUTED.md)",
+        help="local: --workers processes here; ray: one Ray task per run",
     )  # fmt: skip
     parser.add_argument(
         "--address", default=None, help="ray: 'auto', host:port or ray://host:port (default: "

@@ -1,35 +1,35 @@
-"""A pre-registered grid's table and verdicts: ``gentlerl table {sac,gentlebench,method3} RUNS_DIR``.
+"""``gentlerl table GRID``: the grids' tables moved out of the library in 0.2.0.
 
-``sac``: the SAC grid of docs/SAC.md (``recipes/grids/sac_grid.sh``), from each run's
-``final_eval.json``; ``gentlebench``: GentleBench of docs/GENTLEBENCH.md
-(``recipes/grids/gentlebench.sh``), from each run's ``final_eval_episodes.csv``; ``method3``: its
-Method III amendment (``recipes/grids/method3.sh``). Prints a
-markdown table with each pre-registered verdict (:mod:`gentlerl.analysis.criteria`).
+The SAC grid's, GentleBench's and Method III's tables with their pre-registered verdicts are the
+project's own experiments; each is a script of a checkout (:data:`MOVED`). This command only says
+which one to run.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
-from gentlerl.analysis.grid_tables import gentlebench_table, sac_table
-from gentlerl.analysis.method3 import method3_table
 from gentlerl.apps.parsing import command_parser
 
-#: Grid name -> the table of its runs under a folder.
-TABLES: dict[str, Callable[[Path], str]] = {
-    "sac": sac_table,
-    "gentlebench": gentlebench_table,
-    "method3": method3_table,
+#: Grid name -> the script that prints its table now.
+MOVED: dict[str, str] = {
+    "sac": "experiments/sac_grid/table.py",
+    "gentlebench": "experiments/gentlebench/table.py",
+    "method3": "experiments/method3/table.py",
 }
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> None:
-    """Print the table and verdicts of the grid named on the command line."""
+    """Refuse in one line, naming the script that prints the grid's table now."""
     parser = command_parser(prog, __doc__.splitlines()[0])
-    parser.add_argument("grid", choices=tuple(TABLES), help="which grid's criteria judge the runs")
-    parser.add_argument("runs", type=Path, help="the grid's --out folder (e.g. runs/sac)")
+    parser.add_argument("grid", choices=tuple(MOVED), help="the grid whose table moved")
+    parser.add_argument(
+        "runs", nargs="?", type=Path, help="the grid's --out folder (e.g. runs/sac)"
+    )
     args = parser.parse_args(argv)
-    if not args.runs.is_dir():
-        raise FileNotFoundError(f"{args.runs}: no such directory")
-    print(TABLES[args.grid](args.runs), end="")
+    runs = args.runs or "RUNS_DIR"
+    raise ValueError(
+        f"the {args.grid} grid's table moved out of the library in 0.2.0: run python "
+        f"{MOVED[args.grid]} {runs} from a checkout"
+    )

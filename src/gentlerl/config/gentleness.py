@@ -1,5 +1,5 @@
 """The gentleness settings: the paper's lambdas, its models and schedule, and Method III's
-tolerance, normalised curiosity and impact multiplier (docs/GENTLEBENCH.md)."""
+tolerance, normalised curiosity and impact multiplier."""
 
 from __future__ import annotations
 
@@ -48,11 +48,11 @@ class GentlenessConfig:
     )
     # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
     # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
-    # the support's +10 top. 1/500 maps the largest measured r^s to ~10 (docs/REPRODUCTION.md).
+    # the support's +10 top. 1/500 maps the largest measured r^s to ~10.
     dynamics_surprise_scale: float = setting(
         0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0", ablation=True
     )
-    # Measured (docs/REPRODUCTION.md, fifth amendment): with supports per head and r^sp
+    # Measured: with supports per head and r^sp
     # recomputed at sampling, the fragile probe ended at 1.00 without a floor and 0.85 with 0;
     # the NLL of contact steps stayed near +1 at 30k frames either way.
     surprise_nll_floor: float | None = setting(
@@ -71,7 +71,7 @@ class GentlenessConfig:
         ablation=True,
     )
     icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")
-    # Method III (beyond the paper; docs/GENTLEBENCH.md): one stated tolerance, no per-env tuning.
+    # Method III (beyond the paper): one stated tolerance, no per-env tuning.
     tolerance: float | None = setting(
         None,
         "the impact one step may deal, in the unit the rewards read (N): the penalty reads impacts "

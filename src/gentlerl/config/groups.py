@@ -51,7 +51,7 @@ class EnvConfig:
         None, "external env: entries concatenated into observation (null: all but pixels)"
     )
     # The paper's lambda is in the newtons of the hand's fingertips; finger-spin's spinning
-    # contacts reach 200-1,600 N, so its penalty is ~100x the hand's (docs/FINGER.md).
+    # contacts reach 200-1,600 N, so its penalty is ~100x the hand's (measured).
     force_scale: float = setting(
         1.0,
         "external env: the adapted force is multiplied by this before the rewards read it "
@@ -72,7 +72,7 @@ class EnvConfig:
 #: Hands per collector env when ``collector.num_envs`` is null (the default) and the env factory
 #: batches: 4 hands share each step's TorchRL and policy overhead (1.35x one hand's collector
 #: frames/s on a quiet core, 1.98x at load 5-7; the default recipe 1.18x faster end to end with
-#: the same evaluations; benchmarks/RESULTS.md).
+#: the same evaluations).
 AUTO_NUM_ENVS = 4
 
 
@@ -221,7 +221,7 @@ class NetworkConfig:
         None,
         "per-step size of r^sp for its head's support (the same horizon factor); null: "
         "dense_reward_bound. A cap on the value of curiosity: 3 (uncapped on the hand) drops "
-        "30k fragile from 1.00 to 0.30 (docs/REPRODUCTION.md, ninth amendment)",
+        "30k fragile from 1.00 to 0.30 (measured)",
         bounds="> 0",
         ablation=True,
     )

@@ -85,7 +85,7 @@ def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
     except OSError as err:
         raise ClusterError(
             f"cannot reach the Ray cluster at {address!r} ({host}:{port}: {err}); start one with "
-            "`ray start --head` and pass its address (see docs/DISTRIBUTED.md)"
+            "`ray start --head` and pass its address"
         ) from err
 
 
@@ -114,8 +114,7 @@ def join_cluster(address: str | None) -> None:
 def no_cluster(address: str | None, err: Exception) -> ClusterError:
     """The error for ``ray.init`` finding no cluster (``address="auto"`` with none running)."""
     return ClusterError(
-        f"no Ray cluster found for address={address!r} ({err}); start one with "
-        "`ray start --head` (see docs/DISTRIBUTED.md)"
+        f"no Ray cluster found for address={address!r} ({err}); start one with `ray start --head`"
     )
 
 

@@ -11,7 +11,8 @@ The driver owns the clock: ``command`` returns once the targets have been applie
 period (50 ms; a real driver sleeps to the next tick, the simulated one steps MuJoCo 25 x 2 ms),
 so the env's step is the paper's 20 Hz control step. Tactile readings are *raw* (sensor units,
 e.g. BioTac pressure counts); the env maps them to newtons with a
-:class:`~gentlerl.transforms.TouchSensorMap`. ``docs/REAL_ROBOT.md`` shows a ROS driver.
+:class:`~gentlerl.transforms.TouchSensorMap`. A real hand's driver wraps its own interface (ROS
+topics, a vendor SDK) behind these four methods.
 """
 
 from __future__ import annotations

@@ -27,8 +27,8 @@ BLOCK_NORMAL = (0.0, float(np.sin(0.75)), float(np.cos(0.75)))
 
 #: The hand's physics regimes (``make_dm_env(..., regime=NAME)``): action scale (fraction of each
 #: actuator's ctrl range per step), finger actuator gain (x gymnasium-robotics' kp and force
-#: range) and block gap (m, along :data:`BLOCK_NORMAL`). Measured by ``experiments/regimes.py``
-#: (docs/REGIMES.md). ``paper`` puts the hand in the paper's regime: a naive full press breaks
+#: range) and block gap (m, along :data:`BLOCK_NORMAL`), chosen from measured presses and random
+#: actions. ``paper`` puts the hand in the paper's regime: a naive full press breaks
 #: the fragile block (5 of 5 episodes, 8.2 N), uniformly random actions exceed 5 N in 74 % of the
 #: episodes that touch anything, and a gradual scripted press still succeeds without breaking it
 #: (max impact 1.0 N). ``easy`` is the earlier setting, where nothing breaks the block unless it

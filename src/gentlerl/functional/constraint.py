@@ -4,8 +4,7 @@ curiosity and the PID Lagrange multiplier, one function each.
 The paper's :math:`\lambda` (eqs. 3-4) and :math:`\lambda'` (eq. 8) are in the newtons of the hand's
 fingertips, and it notes that :math:`\lambda'` "may be adjusted dynamically during learning". Here a
 user states one number, the tolerance :math:`T`: the impact (eq. 1) one step may deal, in the unit
-the rewards read. Everything else follows from it by these rules, written before any run
-(docs/GENTLEBENCH.md, Method III amendment).
+the rewards read. Everything else follows from it by these rules, written before any run.
 """
 
 from __future__ import annotations
@@ -61,8 +60,8 @@ def running_mean_update(
 def normalized_curiosity(nll: T, scale: float, eps: float = 1e-6) -> T:
     r"""The curiosity of eq. 8 in units of its running scale, :math:`\mathrm{nll} / \max(s, \epsilon)`.
 
-    Off the hand the penalty model's NLL pays 3-60 per contact step (the hand: 1-2, measured,
-    docs/GENTLEBENCH.md); divided by its own running mean magnitude on contact steps it pays
+    Off the hand the penalty model's NLL pays 3-60 per contact step (the hand: 1-2, measured);
+    divided by its own running mean magnitude on contact steps it pays
     about 1 on every env, so the curiosity cannot outbid the penalty by the env's scale alone.
     Works on floats and tensors alike.
     """

@@ -15,9 +15,9 @@ has no unit, so one set of gains serves every env), and an episode at half the t
 below counts as -1 (no contact at all would otherwise be :math:`-\infty`). With a ``period``
 the update runs once per ``period`` env steps instead (on the same median), so that short
 episodes do not step the controller faster than long ones, and ``integral_max`` caps its
-integral (the second Method III amendment). The loop may also feed it the max impacts of a few
+integral. The loop may also feed it the max impacts of a few
 noise-free episodes of the current actor at each step (``gentleness.multiplier_episodes``: the
-deployed policy's cost, not the exploring one's; the fourth amendment).
+deployed policy's cost, not the exploring one's).
 
 A multi-critic agent (gentlerl's D4PG) puts :math:`w` on the penalty head in its actor's
 objective (``MultiHeadD4PGLoss.set_head_weight``); the critics keep learning the unweighted
@@ -51,7 +51,7 @@ class ImpactMultiplier:
         tolerance: :math:`T`, the impact one step may deal (the unit of the observed impacts).
         gains: :math:`(K_P, K_I, K_D)` on the error in doublings above the tolerance.
         window: :data:`WINDOW` episodes by default.
-        period: ``None``: one PID step per finished episode (the first Method III amendment).
+        period: ``None``: one PID step per finished episode.
             ``N``: one PID step per ``N`` env steps, on the window's median (episodes of every
             length then steer at one rate per frame).
         integral_max: the cap of the PID integral (anti-windup; ``None``: no cap).

@@ -98,8 +98,8 @@ class PenaltySurprise(ModelRewardTransform):
         kind: what the curiosity part reads (:data:`SURPRISE_KINDS`): ``"nll"``, eq. 8's
             :math:`-\log \mathcal{N}(r^f_t \mid \mu_*, \sigma^2_*)`; ``"information_gain"``,
             the ensemble's disagreement :func:`~gentlerl.functional.information_gain` in its
-            place (beyond the paper: the NLL of a wide or over-sure but unanimous model does not
-            fade as the model learns, docs/REPRODUCTION.md; the disagreement does). The refund
+            place (beyond the paper: the NLL of a wide or over-sure but unanimous model was
+            measured not to fade as the model learns; the disagreement does). The refund
             :math:`-a' r^f` is kept either way; ``nll_floor`` applies to ``"nll"`` only.
         normalize: divide the curiosity by its running mean magnitude over the contact steps
             scored so far (:func:`~gentlerl.functional.running_mean_update`,

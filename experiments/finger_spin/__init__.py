@@ -1,0 +1,1 @@
+"""Gentleness on dm_control's finger-spin: ``grid.sh`` runs ``finger_spin.yaml``."""

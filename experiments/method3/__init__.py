@@ -1,0 +1,1 @@
+"""Method III: the stated tolerance, normalised curiosity and the PID multiplier, with its amendments."""

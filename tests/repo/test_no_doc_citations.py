@@ -1,0 +1,106 @@
+"""The library cites none of the checkout's documents: a docstring, comment or message in
+``src/`` that sends the reader to ``docs/*.md``, ``benchmarks/RESULTS.md``, the README or another
+markdown file of the repository fails here. An installed library has no such files beside it; a
+measured number that explains a design choice is stated as such, without the citation.
+"""
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SRC = ROOT / "src" / "gentlerl"
+
+#: Files that still cite a document and are being rewritten elsewhere. This list must only
+#: shrink, to empty: a file that no longer cites comes off it (the last test checks).
+ALLOWED = {
+    "functional/__init__.py",  # CONTRIBUTING.md
+    "rewards/model_step.py",  # benchmarks/RESULTS.md
+    "apps/seeds.py",  # benchmarks/RESULTS.md
+}
+
+
+def _documents(root: Path) -> set[str]:
+    """The names of the repository's written documents: the markdown files at the top and directly
+    in ``docs/``, ``benchmarks/``, ``experiments/`` (not the ``summary.md`` / ``claims.md`` tables
+    that runs write and ``docs/figures/`` keeps)."""
+    found = set(root.glob("*.md"))
+    for folder in ("docs", "benchmarks", "experiments"):
+        found |= set((root / folder).glob("*.md"))
+    return {path.name for path in found}
+
+
+def citation_pattern(documents: set[str]) -> re.Pattern[str]:
+    """A path into ``docs/`` naming a markdown file (existing or not), or any of ``documents``
+    (with or without its folder); not an output file the code writes (``summary.md``), a
+    placeholder (``OUT.md``) or a folder such as ``docs/policies``."""
+    names = "|".join(sorted(map(re.escape, documents))) or r"(?!)"
+    return re.compile(rf"(?<![\w.-])(?:docs/[\w./-]*\.md|(?:[\w.-]+/)*(?:{names}))(?![\w-])")
+
+
+def citations(src: Path, pattern: re.Pattern[str]) -> dict[str, list[str]]:
+    """Path under ``src`` -> its lines that cite a document, as ``line: text``."""
+    out: dict[str, list[str]] = {}
+    for path in sorted(src.rglob("*.py")):
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if pattern.search(line):
+                out.setdefault(path.relative_to(src).as_posix(), []).append(f"{number}: {line}")
+    return out
+
+
+PATTERN = citation_pattern(_documents(ROOT))
+
+
+def test_the_documents_are_found():
+    assert {"README.md", "CONTRIBUTING.md", "RESULTS.md", "REPRODUCTION.md"} <= _documents(ROOT)
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        "see docs/REGIMES.md",
+        "(measured, docs/FUTURE_NOTES.md)",
+        "6 % of a run, benchmarks/RESULTS.md).",
+        "CONTRIBUTING.md maps the paper's names",
+        "REPRODUCTION.md's criteria",
+        "``README.md``",
+    ],
+)
+def test_a_citation_is_found(line):
+    assert PATTERN.search(line), line
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        "``summary.csv`` / ``summary.md``",
+        "[--markdown OUT.md]",
+        '"--out", default="docs/policies"',
+        "python experiments/method3/table.py RUNS_DIR",
+        "GENTLEBENCH_R_LEARNS = 20.0",
+        "MY_README.md.bak",
+    ],
+)
+def test_what_is_not_a_citation_is_not_found(line):
+    assert not PATTERN.search(line), line
+
+
+def test_a_planted_citation_in_a_source_tree_is_reported(tmp_path):
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "clean.py").write_text('"""The summary writes summary.md."""\n')
+    (tmp_path / "pkg" / "cites.py").write_text("x = 1\n# measured (docs/REPRODUCTION.md)\n")
+    assert citations(tmp_path, PATTERN) == {
+        "pkg/cites.py": ["2: # measured (docs/REPRODUCTION.md)"]
+    }
+
+
+def test_src_cites_no_document_but_the_allowed_files():
+    found = citations(SRC, PATTERN)
+    cited = {path: lines for path, lines in found.items() if path not in ALLOWED}
+    assert not cited, f"src/ cites the checkout's documents: {cited}"
+
+
+def test_every_allowed_file_still_cites():
+    gone = sorted(ALLOWED - set(citations(SRC, PATTERN)))
+    assert not gone, f"these cite no document now: take them off ALLOWED: {gone}"
