@@ -5,6 +5,10 @@ several seeds' learners as one ``torch.vmap``; ``builder`` wires the policy, the
 rewards (:mod:`gentlerl.rewards`) and the replay for a config, so that any runner (one process,
 several, distributed) trains the same agent. Names are imported on first use
 (:mod:`gentlerl.lazy`).
+
+The reward side moved to :mod:`gentlerl.rewards` in 0.2.0; its old names here
+(``IntrinsicRewards``, ``COMPONENTS``, ``VARIANTS``, ``Component``, ``Part``, ``reward_keys``)
+warn and forward until 0.3.0.
 """
 
 from gentlerl.lazy import lazy_exports
@@ -15,5 +19,16 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "gentlerl.agent.builder": ("AgentBuilder",),
         "gentlerl.agent.learner": ("Learner",),
         "gentlerl.agent.seeds": ("SeedBatchedLearner",),
+    },
+    deprecated={
+        name: ("gentlerl.rewards", name)
+        for name in (
+            "IntrinsicRewards",
+            "COMPONENTS",
+            "VARIANTS",
+            "Component",
+            "Part",
+            "reward_keys",
+        )
     },
 )
