@@ -29,7 +29,6 @@ WITHOUT_A_TEST = {
     "gentlerl.envs.environment",
     "gentlerl.envs.rendering",
     "gentlerl.envs.task_names",
-    "gentlerl.lazy",  # tests/repo/test_startup.py
     "gentlerl.models.layers",
     "gentlerl.objectives.value",
     "gentlerl.rewards.chain",

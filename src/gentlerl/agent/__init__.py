@@ -5,6 +5,10 @@ several as one step over a leading seed axis; ``builder`` wires the policy, the 
 rewards (:mod:`gentlerl.rewards`) and the replay for a config, so that any runner (one process,
 several, distributed) trains the same agent. Names are imported on first use
 (:mod:`gentlerl.lazy`).
+
+The reward side moved to :mod:`gentlerl.rewards` in 0.2.0; its old names here
+(``IntrinsicRewards``, ``COMPONENTS``, ``VARIANTS``, ``Component``, ``Part``, ``reward_keys``)
+warn and forward until 0.3.0.
 """
 
 from gentlerl.lazy import lazy_exports
@@ -14,5 +18,16 @@ __getattr__, __dir__, __all__ = lazy_exports(
     {
         "gentlerl.agent.builder": ("AgentBuilder",),
         "gentlerl.agent.learner": ("Learner", "SeedBatchedLearner", "TrainingState"),
+    },
+    deprecated={
+        name: ("gentlerl.rewards", name)
+        for name in (
+            "IntrinsicRewards",
+            "COMPONENTS",
+            "VARIANTS",
+            "Component",
+            "Part",
+            "reward_keys",
+        )
     },
 )

@@ -9,4 +9,9 @@ backend), :mod:`~gentlerl.apps.sweep_files` (sweep files read and checked),
 :mod:`~gentlerl.apps.errors` (one-line refusals), :mod:`~gentlerl.apps.parsing` (the parser every
 command starts from) and :mod:`~gentlerl.apps.outputs`. What the commands compute from runs is
 :mod:`gentlerl.analysis`. Nothing here is imported by ``import gentlerl``.
+
+Its public interface is the commands (``gentlerl COMMAND``, :data:`gentlerl.cli.COMMANDS`), not
+Python names: ``__all__`` is empty.
 """
+
+__all__: list[str] = []
