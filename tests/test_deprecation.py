@@ -114,12 +114,6 @@ def test_a_make_method_that_became_an_attribute_returns_it():
         _Owner().old_make(1)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="wired in the class bodies of rewards/intrinsic.py and agent/builder.py: "
-    'sampling_transform = moved_method("sampling_transform", "rescore_transform") and '
-    'make_intrinsic_rewards = moved_method("make_intrinsic_rewards", "rewards", attribute=True)',
-)
 def test_the_moved_methods_of_intrinsic_rewards_and_agent_builder_forward():
     from gentlerl.agent import AgentBuilder
     from gentlerl.rewards import IntrinsicRewards

@@ -5,8 +5,8 @@ backend when it is first imported (:func:`gentlerl.opengl.configure_gl`, before 
 a training run's process set-up records a missing pandas
 (:func:`gentlerl.training.builders.prepare_process`).
 
-The public API is each package's ``__all__`` (CONTRIBUTING.md, "Public API and deprecations");
-``tests/repo/public_api.json`` holds it.
+The public API is each package's ``__all__``; a moved name keeps a deprecated alias for one
+release (:mod:`gentlerl.deprecation`).
 """
 
 __all__ = ["__version__"]

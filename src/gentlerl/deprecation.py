@@ -3,7 +3,7 @@
 A public name that moves keeps working under its old name until :data:`REMOVED_IN`: a package's
 moved name through :func:`gentlerl.lazy.lazy_exports` (``deprecated=``), a moved method through
 :func:`moved_method`. Each use warns once, with one line naming the old name, the new one and the
-release that removes it (CONTRIBUTING.md, "Public API and deprecations").
+release that removes it.
 """
 
 from __future__ import annotations

@@ -323,3 +323,13 @@ def test_the_ray_cluster_is_joined_after_the_agent_is_built_and_before_anything_
     with pytest.raises(ClusterError, match="address='auto'"):
         Trainer(cfg, toy_env)
     assert built and not run_dir.exists()
+
+
+def test_the_deprecated_trainer_update_warns_and_takes_one_update(tmp_path):
+    trainer = Trainer(tiny_config(tmp_path, total_frames=300), toy_env)
+    trainer.run()
+    before = trainer.counters["updates"]
+    with pytest.warns(DeprecationWarning, match=r"Trainer.update\(\) is deprecated"):
+        metrics = trainer.update()
+    assert trainer.counters["updates"] == before + 1
+    assert {"loss_value", "loss_actor", "model_penalty"} <= set(metrics)

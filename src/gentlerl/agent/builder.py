@@ -27,6 +27,7 @@ from gentlerl.config import (
     ReplayConfig,
 )
 from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
+from gentlerl.deprecation import moved_method
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.rewards.intrinsic import IntrinsicRewards
@@ -65,6 +66,9 @@ class AgentBuilder:
         supports: each critic head's ``(v_min, v_max)`` (:func:`~gentlerl.rewards.variants.critic_supports`).
         rewards: the variant's :class:`~gentlerl.rewards.IntrinsicRewards`.
     """
+
+    #: Deprecated (removed in 0.3.0): the attribute :attr:`rewards`.
+    make_intrinsic_rewards = moved_method("make_intrinsic_rewards", "rewards", attribute=True)
 
     def __init__(self, cfg: AgentConfig, env: EnvBase) -> None:
         self.cfg = cfg

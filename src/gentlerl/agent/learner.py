@@ -262,3 +262,13 @@ class SeedBatchedLearner(Learner):
             stacklevel=2,
         )
         super().__init__(list(losses), **options)
+
+    def write_back(self, seed: int) -> MultiHeadD4PGLoss:
+        """Seed ``seed``'s loss (its tensors are already views of its row: nothing to copy)."""
+        return self.losses[self._seat(seed)]
+
+    def optimizer_rows(self, optimizers: Sequence[torch.optim.Optimizer]) -> None:
+        """Each seed's own optimiser given its row of this one's state (:meth:`state_of`)."""
+        state = self.optimizer.state_dict()
+        for s, optimizer in enumerate(optimizers):
+            optimizer.load_state_dict(optimizer_row(state, s))

@@ -9,12 +9,12 @@ reward models, evaluations, logs and checkpoint, which ``gentlerl plot`` and ``g
 evaluate`` read and ``gentlerl train run_dir=... resume=true`` continues alone. The seeds'
 reward models and D4PG learners take their updates as one vmapped step
 (:class:`~gentlerl.training.seed_group.SeedGroup`): on a GPU learner that is the point (five
-seeds' learner step at 0.60x one seed's rate on an H200, benchmarks/RESULTS.md); on a CPU a group
-costs about what its seeds cost one after the other. ``--set`` items are the config fields of
-``gentlerl train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resume``
-are the command's own. A group is refused in one line before any folder is made: settings it
-does not batch (an ICM variant, ``gentleness.multiplier``), a run directory that holds a run
-(a group does not resume), repeated seeds.
+seeds' learner step measured at 0.60x one seed's rate on an H200); on a CPU a group costs about
+what its seeds cost one after the other. ``--set`` items are the config fields of ``gentlerl
+train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resume`` are the
+command's own. A group is refused in one line before any folder is made: a setting it does not
+batch (``gentleness.multiplier``), a run directory that holds a checkpoint (a group does not
+resume; one stopped before its first checkpoint starts again), repeated seeds.
 """
 
 from __future__ import annotations

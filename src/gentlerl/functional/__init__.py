@@ -1,4 +1,4 @@
-"""Pure functions for the paper's equations, one each (CONTRIBUTING.md maps the paper's names)."""
+"""Pure functions for the paper's equations, one each, named as the paper's quantities."""
 
 from gentlerl.functional.constraint import (
     normalized_curiosity,

@@ -19,6 +19,7 @@ from torchrl.objectives import HardUpdate
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig, check_group
 from gentlerl.data import make_model_buffer
+from gentlerl.deprecation import moved_method
 from gentlerl.functional import tolerance_unit
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.rewards.chain import RewardChain
@@ -56,6 +57,9 @@ class IntrinsicRewards(Rescoring):
     appends :meth:`rescore_transform`. :meth:`update` raises once the rewards are
     on if neither ever ran, rather than training on stale curiosity without a word.
     """
+
+    #: Deprecated (removed in 0.3.0): :meth:`rescore_transform`.
+    sampling_transform = moved_method("sampling_transform", "rescore_transform")
 
     def __init__(
         self,

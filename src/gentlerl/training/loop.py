@@ -24,6 +24,7 @@ from torchrl import timeit
 from torchrl.envs import EnvBase
 
 from gentlerl.config.layout import RunLayout
+from gentlerl.deprecation import warn_deprecated
 from gentlerl.distributed.cluster import join_cluster
 from gentlerl.files import write_atomic
 from gentlerl.training import guards, run_eval, run_state
@@ -80,6 +81,12 @@ class Trainer:
         """Collect up to ``collector.total_frames``, evaluate the last actor, write ``DONE``;
         a finished run is not run again (its final evaluation is returned)."""
         return Lockstep([self]).run()[0]
+
+    def update(self) -> dict[str, float]:
+        """Deprecated since 0.2.0 (removed in 0.3.0): one update of this run, as
+        :meth:`Lockstep.update <gentlerl.training.lockstep.Lockstep.update>` of it alone."""
+        warn_deprecated("Trainer.update()", "Lockstep([trainer]).update()")
+        return Lockstep([self]).update()[0]
 
     @property
     def policy(self) -> Any:
