@@ -15,3 +15,7 @@ MAX_WIDTH = 4096
 MAX_HANDS = 256
 #: torch / physics threads of one process.
 MAX_THREADS = 256
+#: seeds of one seed group (``gentlerl seeds``): each holds its own replay, reward models,
+#: learner and collector in the one process (10,000 at CPU scale: 7.3 GB before the first
+#: update), and the group's point, one batched update on a GPU, is reached at a handful.
+MAX_SEEDS = 64
