@@ -19,3 +19,9 @@ MAX_THREADS = 256
 #: learner and collector in the one process (10,000 at CPU scale: 7.3 GB before the first
 #: update), and the group's point, one batched update on a GPU, is reached at a handful.
 MAX_SEEDS = 64
+#: a run's seed. numpy's RandomState takes seeds below 2**32 (torch's up to 2**64 - 1), and a run
+#: seeds more than its seed: its evaluation hands with seed + 10,000, collector worker i with
+#: seed + i and a resumed collector with seed + the frames so far (``training.builders``). The
+#: lower half of numpy's range leaves the upper half to those offsets (a run's seed + its
+#: ``collector.total_frames`` is checked too: the frames alone may pass 2**31).
+MAX_SEED = 2**31 - 1
