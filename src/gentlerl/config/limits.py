@@ -25,3 +25,15 @@ MAX_SEEDS = 64
 #: lower half of numpy's range leaves the upper half to those offsets (a run's seed + its
 #: ``collector.total_frames`` is checked too: the frames alone may pass 2**31).
 MAX_SEED = 2**31 - 1
+#: a force or impact a setting may state (N; ``gentleness.tolerance``). The penalty reads
+#: impacts in units of tolerance / lambda_2 in float32: at 1e6 N a 1 mN impact still costs a
+#: normal float32 penalty (-4e-11), where 1e300 N makes the unit inf and every impact cost 0.
+#: A megannewton is far above any hand's or robot's forces (the hand's tolerance: 2 N).
+MAX_FORCE = 1e6
+#: a weight or scale on a reward or a penalty (``gentleness.multiplier_base``, the multiplier's
+#: integral cap, the surprise scales): it multiplies float32 rewards and critic values, and
+#: 1e6 times a value of the critics' support (|v| <= 1e3) stays far inside float32.
+MAX_WEIGHT = 1e6
+#: a PID gain of the multiplier: its error is in doublings (at most ~300 for float32 impacts),
+#: so 1e3 moves the weight by at most ~3e5 a step, inside :data:`MAX_WEIGHT`'s range.
+MAX_GAIN = 1e3
