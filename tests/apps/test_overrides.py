@@ -61,6 +61,20 @@ def test_sizes_past_their_limit_are_refused_before_anything_is_written(
         ("network.actor_hidden=[a,b]", "network.actor_hidden=[a,b] must be a list of integers"),
         ("env.kwargs=5", "env.kwargs=5 must be a mapping"),
         ("resume=1", "resume=1 must be true, false or a string"),
+        # an integer or a word is not a boolean (OmegaConf reads 1, 0, yes, on as one)
+        *[
+            (f"learner.compile={v}", f"learner.compile={v} must be true or false")
+            for v in ("1", "0", "yes", "on", "2")
+        ],
+        ("logging.progress=0", "logging.progress=0 must be true or false"),
+        # and a boolean is not a number
+        ("seed=true", "seed=true must be an integer"),
+        ("gentleness.tolerance=true", "gentleness.tolerance=true must be a finite number or null"),
+        ("learner.gamma=false", "learner.gamma=false must be a finite number"),
+        (
+            "gentleness.multiplier_gains=[true,0,0]",
+            "gentleness.multiplier_gains=[true,0,0] must be a list of 3 finite numbers",
+        ),
         ("collector.overlap=1", "collector.overlap=1 must be true, false or a string"),
         ("run_dir=" + "x" * 5000, "(5000 chars): a folder name is 5000 bytes, over 255"),
         ("collector.ray_address=[::1]:1", "a string: collector.ray_address='[::1]:1')"),

@@ -7,6 +7,7 @@ import pytest
 from gentlerl import cli
 from gentlerl.apps import seeds as seeds_cli
 from gentlerl.apps.seeds import group_configs
+from gentlerl.config.limits import MAX_SEEDS
 from gentlerl.training import seed_group
 from gentlerl.training.seed_group import group_problems
 
@@ -66,3 +67,18 @@ def test_the_group_trains_and_each_seed_gets_its_closing_lines(tmp_path, capsys,
     out = capsys.readouterr().out
     assert "seed 0: success_rate=0.500 max_impact_mean=1.250 N" in out
     assert "seed 3: success_rate=0.800" in out and str(tmp_path / "seed3") in out
+
+
+def test_more_seeds_than_a_group_holds_are_refused_in_one_line_before_any_folder(
+    tmp_path, capsys, monkeypatch
+):
+    trained = []
+    monkeypatch.setattr(seed_group, "train_seeds", trained.append)
+    out = tmp_path / "group"
+    argv = ["seeds", *map(str, range(MAX_SEEDS + 1)), "--out", str(out)]
+    assert cli.main(argv) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.count("\n") == 1 and f"{MAX_SEEDS + 1} seeds: a group holds at most {MAX_SEEDS}" in err
+    )
+    assert not trained and not out.exists()

@@ -66,8 +66,13 @@ def test_overrides_apply_on_top_of_the_scale():
         ({"learner": {"utd_ratio": float("inf")}}, "learner.utd_ratio=inf must be a finite number"),
         ({"network": {"v_max": float("-inf")}}, "network.v_max=-inf must be a finite number"),
         ({"replay": {"buffer_size": 16, "batch_size": 32}}, "replay.buffer_size=16 must be >= replay.batch_size=32"),
-        ({"seed": -1}, "seed=-1 must be in [0, 2**32)"),
-        ({"seed": 2**32}, "seed=4294967296 must be in [0, 2**32)"),
+        ({"seed": -1}, "seed=-1 must be in [0, 2147483647]"),
+        ({"seed": 2**32}, "seed=4294967296 must be in [0, 2147483647]"),
+        ({"seed": 2**32 - 1}, "seed=4294967295 must be in [0, 2147483647]"),
+        ({"seed": 2**31}, "seed=2147483648 must be in [0, 2147483647]"),
+        ({"seed": True}, "seed=True must be an integer"),
+        ({"seed": 1.0}, "seed=1.0 must be an integer"),
+        ({"seed": 2**31 - 1, "collector": {"total_frames": 3 * 10**9}}, "seed=2147483647 + collector.total_frames=3000000000 must be < 2**32"),
         ({"run_dir": ""}, "run_dir='' must name a directory"),
         ({"resume": "false"}, "resume='false' must be true, false or 'auto'"),
         ({"replay": {"batch_size": 32.5}}, "replay.batch_size=32.5 must be an integer"),
@@ -257,3 +262,23 @@ def test_help_marks_the_ablation_knobs_the_reproduction_grid_switches():
     }
     assert switched and switched <= marked
     assert marked == {name for name, f in iter_fields() if f.metadata.get("ablation")}
+
+
+def test_the_largest_seed_and_every_seed_a_run_derives_from_it_are_taken_by_every_generator():
+    """A run seeds numpy (< 2**32), torch and its envs with its seed, evaluation with seed +
+    EVAL_SEED_OFFSET, worker i with seed + i and a resumed collector with seed + its frames: at
+    the largest seed and frames the config accepts, each of those is a valid seed."""
+    import numpy as np
+    import torch
+
+    from gentlerl.config.groups import CollectorConfig
+    from gentlerl.config.limits import MAX_SEED
+    from gentlerl.training.evaluation import EVAL_SEED_OFFSET
+
+    frames = 2**32 - 1 - MAX_SEED
+    cfg = make_config(seed=MAX_SEED, collector={"total_frames": frames})
+    workers = CollectorConfig.__dataclass_fields__["num_workers"].metadata["bounds"].high
+    derived = [cfg.seed + EVAL_SEED_OFFSET, cfg.seed + int(workers) - 1, cfg.seed + frames - 1]
+    for seed in [cfg.seed, *derived]:
+        np.random.RandomState(seed)
+        torch.manual_seed(seed)

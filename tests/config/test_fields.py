@@ -127,6 +127,14 @@ SIZE_LIMITS = {
 }  # fmt: skip
 #: Ranges that end at a number that is not a size (a share, a discount).
 _NOT_SIZES = ("replay.alpha", "replay.beta", "learner.gamma")
+#: The tops of values that are not sizes (config/limits.py says why each): the seed (numpy's
+#: range less the offsets a run adds), a force, weights and scales, PID gains, a period.
+VALUE_LIMITS = {
+    "seed": 2**31 - 1, "gentleness.tolerance": 1e6, "gentleness.surprise_scale": 1e6,
+    "gentleness.dynamics_surprise_scale": 1e6, "gentleness.icm_eta": 1e6,
+    "gentleness.multiplier_gains": 1e3, "gentleness.multiplier_period": 10**10,
+    "gentleness.multiplier_integral_max": 1e6, "gentleness.multiplier_base": 1e6,
+}  # fmt: skip
 
 
 def _declared() -> dict[str, Range]:
@@ -141,6 +149,7 @@ def test_the_declared_ranges_are_the_ones_validate_checked_before():
         "gentleness.multiplier_integral_max",
         "gentleness.multiplier_base",
         "gentleness.multiplier_episodes",
+        "seed",  # [0, 2**31 - 1]: checked by a rule before (seed < 2**32)
     }
     low = {
         n: (b.low, b.low_open)
@@ -154,7 +163,10 @@ def test_the_declared_ranges_are_the_ones_validate_checked_before():
     }
     assert low == old
     top = {n: b.high for n, b in _declared().items() if b.high < float("inf")}
-    assert {n: v for n, v in top.items() if n not in _NOT_SIZES} == SIZE_LIMITS
+    values = {n: v for n, v in top.items() if n in VALUE_LIMITS}
+    assert values == VALUE_LIMITS
+    sizes = {n: v for n, v in top.items() if n not in _NOT_SIZES and n not in VALUE_LIMITS}
+    assert sizes == SIZE_LIMITS
 
 
 def _overrides(name: str, value: object) -> dict:

@@ -76,7 +76,9 @@ def test_the_pid_integral_is_capped_by_integral_max():
 
 
 def test_the_pid_multiplier_refuses_a_negative_gain():
-    with pytest.raises(ValueError, match="gains must be >= 0"):
+    with pytest.raises(
+        ValueError, match="gains must be .K_P, K_I, K_D., each a finite number >= 0"
+    ):
         pid_lagrangian(1.0, 1.0, 0.0, 1.0, (1.0, -0.1, 0.0))
 
 
@@ -86,3 +88,45 @@ def test_the_overshoot_is_doublings_above_the_tolerance_floored_at_half_of_it():
     assert overshoot(1.0, 2.0) == overshoot(0.0, 2.0) == -1.0  # half or less, no contact
     with pytest.raises(ValueError, match="tolerance must be a finite impact > 0"):
         overshoot(1.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"gains": (math.nan, 0.1, 0.0)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"gains": (1.0, math.inf, 0.0)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"gains": (True, 0.1, 0.0)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"gains": (1.0, 0.1)}, r"gains must be \[K_P, K_I, K_D\]"),
+        ({"cost": math.nan}, "cost must be a finite number, got nan"),
+        ({"limit": math.inf}, "limit must be a finite number, got inf"),
+        ({"integral": math.nan}, "integral must be a finite number, got nan"),
+        ({"previous_cost": -math.inf}, "previous_cost must be a finite number, got -inf"),
+        ({"integral_max": math.nan}, "integral_max must be >= 0"),
+    ],
+)  # fmt: skip
+def test_the_pid_multiplier_refuses_a_non_finite_number_or_a_bool_naming_it(kwargs, message):
+    args = {"cost": 1.0, "limit": 0.0, "integral": 0.0, "previous_cost": 1.0}
+    args["gains"] = (1.0, 0.1, 0.0)
+    with pytest.raises(ValueError, match=message):
+        pid_lagrangian(**{**args, **kwargs})
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: tolerance_unit(True), "tolerance must be a finite impact > 0"),
+        (lambda: tolerance_unit(2.0, math.inf), "lam2 must be a finite number > 0, got inf"),
+        (lambda: tolerance_unit(2.0, math.nan), "lam2 must be a finite number > 0, got nan"),
+        (lambda: overshoot(math.nan, 2.0), "impact must be a finite number >= 0, got nan"),
+        (lambda: overshoot(-1.0, 2.0), "impact must be a finite number >= 0, got -1.0"),
+        (lambda: overshoot(1.0, True), "tolerance must be a finite impact > 0"),
+        (lambda: running_mean_update(math.nan, 1, 2.0), "mean must be a finite number, got nan"),
+        (lambda: running_mean_update(1.0, 1, math.inf), "batch_mean must be a finite number, got inf"),
+        (lambda: running_mean_update(1.0, -1, 2.0), "count must be an integer >= 0, got -1"),
+        (lambda: running_mean_update(1.0, True, 2.0), "count must be an integer >= 0, got True"),
+        (lambda: normalized_curiosity(1.0, math.nan), "scale must be a finite number, got nan"),
+    ],
+)  # fmt: skip
+def test_the_method3_equations_refuse_a_non_finite_or_boolean_number_naming_it(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()

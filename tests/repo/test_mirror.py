@@ -24,7 +24,6 @@ WITHOUT_A_TEST = {
     "gentlerl.apps.parsing",
     "gentlerl.apps.train",  # the hydra app: tests/config/test_config.py
     "gentlerl.config.layout",  # RunLayout: tests/training/test_builders.py, test_logging.py
-    "gentlerl.config.limits",  # size limits: tests/apps/test_overrides.py through `gentlerl train`
     "gentlerl.config.presets",  # SCALES: tests/config/test_config.py through make_config
     "gentlerl.envs.environment",
     "gentlerl.envs.rendering",

@@ -1,6 +1,8 @@
 """Loggers (csv, wandb, tensorboard through TorchRL's get_logger), the progress bar, and
 checkpoints without the replay buffers."""
 
+import math
+
 import pytest
 import torch
 
@@ -71,3 +73,32 @@ def test_checkpoint_without_buffers_is_smaller_and_resumes(tmp_path):
     assert resumed.counters["frames"] == 600
     assert len(resumed.rewards.buffer) == 200  # refilled from the resume on: 200 new frames
     assert torch.isfinite(torch.tensor(read_scalar(tmp_path / "False", "eval/success_rate"))).all()
+
+
+def test_a_nan_impact_beside_a_9_newton_peak_is_logged_as_nan_not_as_the_other_steps():
+    """An episode's max impact with a NaN step is NaN (seen), not the max of its finite steps
+    nor 0 N: python's max(0.0, nan) is 0.0, which hid the 9 N peak of the batch."""
+    from tensordict import TensorDict
+
+    from gentlerl import keys
+    from gentlerl.training.logging import EpisodeStats
+
+    def batch(impacts, done):
+        n = len(impacts)
+        nxt = {
+            keys.REWARD: torch.zeros(n, 1),
+            keys.IMPACT: torch.tensor(impacts).reshape(n, 1),
+            keys.DONE: torch.tensor(done).reshape(n, 1),
+            "step_count": torch.arange(1, n + 1).reshape(n, 1),
+            "episode_reward": torch.zeros(n, 1),
+        }
+        return TensorDict(
+            {("collector", "traj_ids"): torch.zeros(n, dtype=torch.int64), "next": nxt}, [n]
+        )
+
+    tracker = EpisodeStats([keys.REWARD])
+    (episode,) = tracker.update(batch([9.0, float("nan"), 0.5], [False, False, True]))
+    assert math.isnan(episode["max_impact"])
+    tracker.update(batch([float("nan"), 1.0], [False, False]))  # the NaN in an earlier batch
+    (episode,) = tracker.update(batch([9.0], [True]))
+    assert math.isnan(episode["max_impact"])

@@ -2,14 +2,19 @@
 front, and hydra's own errors as one line naming the field, the value and what is expected.
 
 Refused before hydra runs: a key that names no config field, ``~field`` (the field would
-silently take its default) and hydra's run / sweep directories (the run's is ``run_dir``; hydra
-would leave the folder it names empty).
+silently take its default), hydra's run / sweep directories (the run's is ``run_dir``; hydra
+would leave the folder it names empty), and a boolean written as a number or a word (OmegaConf
+reads ``learner.compile=1``, ``0``, ``yes``, ``on`` as booleans) or a number written as a
+boolean (``seed=true``).
 """
 
 from __future__ import annotations
 
 import re
+import types
+import typing
 from collections.abc import Sequence
+from typing import Any
 
 from gentlerl.apps.errors import causes
 from gentlerl.config.fields import describe_type, field_hints
@@ -43,7 +48,33 @@ def override_problems(overrides: Sequence[str]) -> list[str]:
             )
         elif key.lstrip("+") in HYDRA_DIRS:
             problems.append(f"{item}: gentlerl sets hydra's folders from run_dir; set run_dir")
+        elif "=" in item and (hint := fields.get(key.lstrip("+"))) is not None:
+            if problem := _boolean_problem(item, hint):
+                problems.append(problem)
     return problems
+
+
+def _scalar_kinds(hint: Any) -> set[Any]:
+    """The scalar types a field of annotation ``hint`` holds (its list's elements for a list)."""
+    args = typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType, tuple):
+        return {kind for arg in args if arg is not Ellipsis for kind in _scalar_kinds(arg)}
+    return {hint}
+
+
+def _boolean_problem(item: str, hint: Any) -> str | None:
+    """Why the override ``item`` (``field=text``) mixes booleans and numbers, or ``None``: a
+    boolean field takes only ``true`` / ``false`` (or ``null``), a number field no ``true`` /
+    ``false``; other texts are hydra's to read."""
+    text = item.partition("=")[2].strip()
+    kinds = _scalar_kinds(hint)
+    words = {w.strip().lower() for w in text.strip("[]").split(",")}
+    if kinds <= {bool, type(None)}:
+        allowed = {"true", "false"} | ({"null"} if type(None) in kinds else set())
+        return None if text.lower() in allowed else f"{item} must be {describe_type(hint)}"
+    if bool not in kinds and str not in kinds and words & {"true", "false"}:
+        return f"{item} must be {describe_type(hint)}"
+    return None
 
 
 def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:

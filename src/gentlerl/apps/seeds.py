@@ -14,7 +14,7 @@ what its seeds cost one after the other. ``--set`` items are the config fields o
 train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resume`` are the
 command's own. A group is refused in one line before any folder is made: a setting it does not
 batch (``gentleness.multiplier``), a run directory that holds a checkpoint (a group does not
-resume; one stopped before its first checkpoint starts again), repeated seeds.
+resume; one stopped before its first checkpoint starts again), repeated seeds, more than ``MAX_SEEDS`` (64) seeds.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from pathlib import Path
 
 from gentlerl.apps.parsing import command_parser
 from gentlerl.apps.sweep_files import nested_overrides, parse_set
+from gentlerl.config.limits import MAX_SEEDS
 from gentlerl.training.config import TrainConfig, make_config
 
 #: Settings the command sets per seed, refused in ``--set``.
@@ -37,6 +38,11 @@ def group_configs(
     ``scale``), the seed, its run directory (``out/seed<seed>``, or ``gentlerl train``'s)."""
     if len(set(seeds)) != len(seeds) or not seeds:
         raise ValueError(f"seeds must be one or more different integers, got {list(seeds)}")
+    if len(seeds) > MAX_SEEDS:
+        raise ValueError(
+            f"{len(seeds)} seeds: a group holds at most {MAX_SEEDS} (each seed's replay, models "
+            "and collector live in the one process); split them into several groups"
+        )
     for item in items:
         if (key := item.partition("=")[0]) in PER_SEED:
             raise ValueError(

@@ -6,7 +6,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gentlerl.config.fields import setting
-from gentlerl.config.limits import MAX_BATCH, MAX_HANDS, MAX_TRANSITIONS, MAX_WIDTH
+from gentlerl.config.limits import (
+    MAX_BATCH,
+    MAX_FORCE,
+    MAX_FRAMES,
+    MAX_GAIN,
+    MAX_HANDS,
+    MAX_TRANSITIONS,
+    MAX_WEIGHT,
+    MAX_WIDTH,
+)
 
 #: gentleness.multiplier: the penalty head's weight fixed at 1 (the paper), or steered by a PID
 #: Lagrange multiplier toward the tolerance.
@@ -44,13 +53,18 @@ class GentlenessConfig:
     )
     lr_model: float = setting(1e-3, "Adam step size of the models", bounds="> 0", resumable=True)
     surprise_scale: float = setting(
-        1.0, "multiplies r^s and the NLL inside r^sp (not its refund of r^f)", bounds=">= 0"
+        1.0,
+        "multiplies r^s and the NLL inside r^sp (not its refund of r^f)",
+        bounds=f"[0, {MAX_WEIGHT}]",
     )
     # r^s (eq. 6) is an NLL summed over 63 state dimensions: measured at CPU scale (touch, r+rf+rs)
     # 7-54 per step after the switch, so its non-episodic critic (value ~ r / (1 - gamma)) sat at
     # the support's +10 top. 1/500 maps the largest measured r^s to ~10.
     dynamics_surprise_scale: float = setting(
-        0.002, "extra factor on the dynamics surprise r^s", bounds=">= 0", ablation=True
+        0.002,
+        "extra factor on the dynamics surprise r^s",
+        bounds=f"[0, {MAX_WEIGHT}]",
+        ablation=True,
     )
     # Measured: with supports per head and r^sp
     # recomputed at sampling, the fragile probe ended at 1.00 without a floor and 0.85 with 0;
@@ -70,14 +84,14 @@ class GentlenessConfig:
         "recompute r^sp of each sampled n-step transition with the current target model",
         ablation=True,
     )
-    icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=">= 0")
+    icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=f"[0, {MAX_WEIGHT}]")
     # Method III (beyond the paper): one stated tolerance, no per-env tuning.
     tolerance: float | None = setting(
         None,
         "the impact one step may deal, in the unit the rewards read (N): the penalty reads impacts "
         "in units of tolerance / 2, so lam and lam_prime keep the paper's values on every env "
         "(null: impacts in N, the paper)",
-        bounds="> 0",
+        bounds=f"(0, {MAX_FORCE}]",
     )
     curiosity_norm: bool = setting(
         False,
@@ -93,21 +107,23 @@ class GentlenessConfig:
     multiplier_gains: tuple[float, float, float] = setting(
         (1.0, 0.1, 0.0),
         "PID gains [K_P, K_I, K_D] of multiplier=pid (error: doublings above the tolerance)",
-        bounds=">= 0",
+        bounds=f"[0, {MAX_GAIN}]",
     )  # fmt: skip
     multiplier_period: int | None = setting(
         None,
         "env steps between the multiplier's PID steps (null: one step per finished episode)",
-        bounds=">= 1",
+        bounds=f"[1, {MAX_FRAMES}]",
     )
     multiplier_integral_max: float | None = setting(
-        None, "cap of the multiplier's PID integral (anti-windup; null: none)", bounds=">= 0"
+        None,
+        "cap of the multiplier's PID integral (anti-windup; null: none)",
+        bounds=f"[0, {MAX_WEIGHT}]",
     )
     multiplier_base: float = setting(
         1.0,
         "w = multiplier_base + mu: 1 keeps at least the paper's weight, 0 is a plain Lagrangian "
         "(no penalty while the impacts stay within the tolerance)",
-        bounds=">= 0",
+        bounds=f"[0, {MAX_WEIGHT}]",
     )
     multiplier_episodes: int = setting(
         0,

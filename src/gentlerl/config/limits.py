@@ -15,3 +15,25 @@ MAX_WIDTH = 4096
 MAX_HANDS = 256
 #: torch / physics threads of one process.
 MAX_THREADS = 256
+#: seeds of one seed group (``gentlerl seeds``): each holds its own replay, reward models,
+#: learner and collector in the one process (10,000 at CPU scale: 7.3 GB before the first
+#: update), and the group's point, one batched update on a GPU, is reached at a handful.
+MAX_SEEDS = 64
+#: a run's seed. numpy's RandomState takes seeds below 2**32 (torch's up to 2**64 - 1), and a run
+#: seeds more than its seed: its evaluation hands with seed + 10,000, collector worker i with
+#: seed + i and a resumed collector with seed + the frames so far (``training.builders``). The
+#: lower half of numpy's range leaves the upper half to those offsets (a run's seed + its
+#: ``collector.total_frames`` is checked too: the frames alone may pass 2**31).
+MAX_SEED = 2**31 - 1
+#: a force or impact a setting may state (N; ``gentleness.tolerance``). The penalty reads
+#: impacts in units of tolerance / lambda_2 in float32: at 1e6 N a 1 mN impact still costs a
+#: normal float32 penalty (-4e-11), where 1e300 N makes the unit inf and every impact cost 0.
+#: A megannewton is far above any hand's or robot's forces (the hand's tolerance: 2 N).
+MAX_FORCE = 1e6
+#: a weight or scale on a reward or a penalty (``gentleness.multiplier_base``, the multiplier's
+#: integral cap, the surprise scales): it multiplies float32 rewards and critic values, and
+#: 1e6 times a value of the critics' support (|v| <= 1e3) stays far inside float32.
+MAX_WEIGHT = 1e6
+#: a PID gain of the multiplier: its error is in doublings (at most ~300 for float32 impacts),
+#: so 1e3 moves the weight by at most ~3e5 a step, inside :data:`MAX_WEIGHT`'s range.
+MAX_GAIN = 1e3

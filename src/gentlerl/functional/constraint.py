@@ -10,6 +10,8 @@ the rewards read. Everything else follows from it by these rules, written before
 from __future__ import annotations
 
 import math
+import numbers
+from collections.abc import Sequence
 from typing import TypeVar
 
 import torch
@@ -19,6 +21,33 @@ T = TypeVar("T", float, torch.Tensor)
 
 #: The paper's :math:`\lambda_2` (N): the impact its acceptability sigmoid (eq. 3) puts at 1/2.
 PAPER_LAMBDA_2 = 2.0
+
+
+def is_finite_number(value: object) -> bool:
+    """Whether ``value`` is a real, finite number and not a bool (``True`` is not 1 here)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def finite(name: str, value: object) -> float:
+    """``value`` as a float, or a ``ValueError`` naming ``name`` when it is not a finite number
+    (a NaN would stick in every later update; a bool is not a number)."""
+    if not is_finite_number(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def check_gains(gains: Sequence[float]) -> tuple[float, float, float]:
+    """PID gains ``(K_P, K_I, K_D)`` as floats, each finite and >= 0; else one ``ValueError``."""
+    if len(gains) != 3 or not all(is_finite_number(g) and g >= 0 for g in gains):
+        raise ValueError(
+            f"gains must be [K_P, K_I, K_D], each a finite number >= 0, got {list(gains)}"
+        )
+    return (float(gains[0]), float(gains[1]), float(gains[2]))
+
+
+def _check_tolerance(tolerance: float) -> None:
+    if not (is_finite_number(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be a finite impact > 0 (N), got {tolerance!r}")
 
 
 def tolerance_unit(tolerance: float, lam2: float = PAPER_LAMBDA_2) -> float:
@@ -31,10 +60,9 @@ def tolerance_unit(tolerance: float, lam2: float = PAPER_LAMBDA_2) -> float:
 
     Example: a finger whose tolerance is 20 N reads impacts in units of 10 N.
     """
-    if not (math.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be a finite impact > 0 (N), got {tolerance!r}")
-    if not lam2 > 0:
-        raise ValueError(f"lam2 must be > 0, got {lam2!r}")
+    _check_tolerance(tolerance)
+    if not (is_finite_number(lam2) and lam2 > 0):
+        raise ValueError(f"lam2 must be a finite number > 0, got {lam2!r}")
     return tolerance / lam2
 
 
@@ -52,7 +80,10 @@ def running_mean_update(
     """
     if not 0 < min_rate <= 1:
         raise ValueError(f"min_rate must be in (0, 1], got {min_rate}")
-    count += 1
+    mean, batch_mean = finite("mean", mean), finite("batch_mean", batch_mean)
+    if isinstance(count, bool) or not isinstance(count, numbers.Integral) or count < 0:
+        raise ValueError(f"count must be an integer >= 0, got {count!r}")
+    count = int(count) + 1
     rate = max(1.0 / count, min_rate)
     return mean + rate * (batch_mean - mean), count
 
@@ -65,7 +96,7 @@ def normalized_curiosity(nll: T, scale: float, eps: float = 1e-6) -> T:
     about 1 on every env, so the curiosity cannot outbid the penalty by the env's scale alone.
     Works on floats and tensors alike.
     """
-    return nll / max(scale, eps)
+    return nll / max(finite("scale", scale), eps)
 
 
 def overshoot(impact: float, tolerance: float) -> float:
@@ -74,8 +105,9 @@ def overshoot(impact: float, tolerance: float) -> float:
 
     A ratio, so the PID gains need no unit; the floor keeps an episode without contact finite.
     """
-    if not (math.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
+    _check_tolerance(tolerance)
+    if not (is_finite_number(impact) and impact >= 0):
+        raise ValueError(f"impact must be a finite number >= 0, got {impact!r}")
     return math.log2(max(impact, tolerance / 2) / tolerance)
 
 
@@ -100,11 +132,11 @@ def pid_lagrangian(
     (anti-windup: a long overshoot cannot store more than it, so the multiplier falls within
     :math:`I_{\max} / (K_I |e|)` updates once the cost is below its limit). Returns ``(mu_k, I_k)``.
     """
-    kp, ki, kd = gains
-    if min(gains) < 0:
-        raise ValueError(f"PID gains must be >= 0, got {gains}")
-    if not integral_max >= 0:
-        raise ValueError(f"integral_max must be >= 0, got {integral_max}")
+    kp, ki, kd = check_gains(gains)
+    if isinstance(integral_max, bool) or not integral_max >= 0:
+        raise ValueError(f"integral_max must be >= 0 (inf: no cap), got {integral_max!r}")
+    cost, limit = finite("cost", cost), finite("limit", limit)
+    integral, previous_cost = finite("integral", integral), finite("previous_cost", previous_cost)
     error = cost - limit
     integral = min(integral_max, max(0.0, integral + ki * error))
     multiplier = max(0.0, kp * error + integral + kd * max(0.0, cost - previous_cost))

@@ -29,9 +29,10 @@ collector's batches (:meth:`ImpactMultiplier.observe_batch`).
 from __future__ import annotations
 
 import math
+import numbers
 import statistics
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import torch
@@ -39,6 +40,7 @@ from tensordict import TensorDictBase
 
 from gentlerl import keys
 from gentlerl.functional import overshoot, pid_lagrangian
+from gentlerl.functional.constraint import check_gains, is_finite_number
 
 #: Finished episodes whose median max impact is the constraint's cost.
 WINDOW = 10
@@ -68,20 +70,19 @@ class ImpactMultiplier:
         integral_max: float | None = None,
         base: float = 1.0,
     ) -> None:
-        if not (math.isfinite(tolerance) and tolerance > 0):
+        if not (is_finite_number(tolerance) and tolerance > 0):
             raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
-        if len(gains) != 3 or min(gains) < 0:
-            raise ValueError(f"gains must be [K_P, K_I, K_D] >= 0, got {gains}")
-        if window < 1:
-            raise ValueError(f"window must be >= 1 episode, got {window}")
-        if period is not None and period < 1:
-            raise ValueError(f"period must be >= 1 env step (or None), got {period}")
-        if not (math.isfinite(base) and base >= 0):
+        gains = check_gains(gains)
+        if not (_is_integer(window) and window >= 1):
+            raise ValueError(f"window must be an integer >= 1 episode, got {window!r}")
+        if period is not None and not (_is_integer(period) and period >= 1):
+            raise ValueError(f"period must be an integer >= 1 env step (or None), got {period!r}")
+        if not (is_finite_number(base) and base >= 0):
             raise ValueError(f"base must be a finite weight >= 0, got {base!r}")
         integral_max = math.inf if integral_max is None else integral_max
-        if not integral_max >= 0:
-            raise ValueError(f"integral_max must be >= 0 (or None), got {integral_max}")
-        self.tolerance, self.gains = float(tolerance), tuple(float(g) for g in gains)
+        if isinstance(integral_max, bool) or not integral_max >= 0:
+            raise ValueError(f"integral_max must be a number >= 0 (or None), got {integral_max!r}")
+        self.tolerance, self.gains = float(tolerance), gains
         self.period, self.integral_max, self.base = period, float(integral_max), float(base)
         self.recent: deque[float] = deque(maxlen=window)
         self.multiplier = self.integral = self.cost = 0.0
@@ -129,10 +130,20 @@ class ImpactMultiplier:
         """:meth:`observe` a batch of a TorchRL collector (any loop's, e.g. SAC's): the max
         impact (``("next", "impact")``, over sites and steps) of each episode that ends in it,
         an episode told by the collector's ``("collector", "traj_ids")``; an episode that
-        continues into the next batch carries its max there (not checkpointed)."""
+        continues into the next batch carries its max there (not checkpointed). A non-finite
+        impact is refused before anything is taken (a NaN step would otherwise read as 0 N and
+        hide the episode's peak)."""
         flat = batch.reshape(-1)
         traj = flat.get(("collector", "traj_ids")).reshape(-1)
-        impact = flat.get(("next", keys.IMPACT)).reshape(len(flat), -1).amax(-1)
+        impact = flat.get(("next", keys.IMPACT)).reshape(len(flat), -1)
+        bad = ~torch.isfinite(impact).all(-1)
+        if bad.any():
+            raise ValueError(
+                f'("next", {keys.IMPACT!r}) holds a non-finite impact at {int(bad.sum())} of '
+                f"{len(flat)} steps (first: {impact[bad][0].tolist()}): the episodes' max impact "
+                "needs finite impacts"
+            )
+        impact = impact.amax(-1)
         done = flat.get(("next", keys.DONE)).reshape(-1)
         finished = []
         for tid in torch.unique(traj).tolist():
@@ -174,12 +185,45 @@ class ImpactMultiplier:
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict`'s entries, each checked first (a tampered or corrupt one
+        is refused in one line naming it, and nothing is changed)."""
+        for name in ("recent", "multiplier", "integral", "cost", "episodes"):
+            if name not in state:
+                raise ValueError(f"ImpactMultiplier state lacks {name!r}")
+        # saved before the period existed: one step per episode, no frames seen
+        state = {"steps": state["episodes"], "frames": -1, **state}
+        recent = state["recent"]
+        if not (
+            isinstance(recent, Sequence)
+            and not isinstance(recent, str)
+            and all(is_finite_number(x) and x >= 0 for x in recent)
+        ):
+            _refuse("recent", recent, "a list of finite impacts >= 0")
+        checks = {
+            "multiplier": (is_finite_number, 0.0, math.inf, "a finite number >= 0"),
+            "integral": (
+                is_finite_number, 0.0, self.integral_max,
+                f"a finite number in [0, {self.integral_max}] (integral_max)",
+            ),
+            "cost": (is_finite_number, -math.inf, math.inf, "a finite number"),
+            "episodes": (_is_integer, 0, math.inf, "an integer >= 0"),
+            "steps": (_is_integer, 0, math.inf, "an integer >= 0"),
+            "frames": (_is_integer, -1, math.inf, "an integer >= -1 (-1: none yet)"),
+        }  # fmt: skip
+        for name, (kind, low, high, expected) in checks.items():
+            if not (kind(state[name]) and low <= state[name] <= high):
+                _refuse(name, state[name], expected)
         self.recent.clear()
-        self.recent.extend(float(x) for x in state["recent"])
+        self.recent.extend(float(x) for x in recent)
         self.multiplier, self.integral = float(state["multiplier"]), float(state["integral"])
         self.cost, self.episodes = float(state["cost"]), int(state["episodes"])
-        # saved before the period existed: one step per episode, no frames seen
-        self.steps, self.frames = (
-            int(state.get("steps", self.episodes)),
-            int(state.get("frames", -1)),
-        )
+        self.steps, self.frames = int(state["steps"]), int(state["frames"])
+
+
+def _is_integer(value: object) -> bool:
+    """Whether ``value`` is an integer and not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _refuse(name: str, value: object, expected: str) -> None:
+    raise ValueError(f"ImpactMultiplier state {name!r}={value!r} must be {expected}")

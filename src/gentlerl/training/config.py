@@ -28,6 +28,7 @@ from gentlerl.config.groups import (
     ReplayConfig,
 )
 from gentlerl.config.layout import run_dir_problem
+from gentlerl.config.limits import MAX_SEED
 from gentlerl.config.presets import SCALES
 from gentlerl.config.rules import GROUP_RULES
 from gentlerl.distributed.collector import ray_problems
@@ -70,7 +71,9 @@ class TrainConfig:
     variant: str = setting(
         "r+rf+rsp", "reward components, one critic head each", choices=_variant_names
     )
-    seed: int = setting(0, "seeds torch, numpy, python, the envs and the models")
+    seed: int = setting(
+        0, "seeds torch, numpy, python, the envs and the models", bounds=f"[0, {MAX_SEED}]"
+    )
     scale: str = setting(
         "cpu", "preset applied under the overrides", choices=_scale_names, resumable=True
     )
@@ -160,11 +163,16 @@ def _resume_problems(cfg: TrainConfig) -> list[str]:
 
 
 def _run_problems(cfg: TrainConfig) -> list[str]:
-    """A seed numpy takes, a run directory that can be one (:func:`run_dir_problem`), and a
-    penalty head for ``gentleness.multiplier`` to weigh."""
+    """A resumed collector's seed numpy takes (the seed plus the frames so far), a run directory
+    that can be one (:func:`run_dir_problem`), and a penalty head for ``gentleness.multiplier``
+    to weigh."""
     problems = []
-    if not 0 <= cfg.seed < 2**32:
-        problems.append(f"seed={cfg.seed} must be in [0, 2**32) (numpy's seed range)")
+    if cfg.seed + cfg.collector.total_frames >= 2**32:
+        problems.append(
+            f"seed={cfg.seed} + collector.total_frames={cfg.collector.total_frames} must be "
+            "< 2**32 (a resumed run seeds its collector with seed + the frames so far, numpy "
+            "takes seeds below 2**32)"
+        )
     if cfg.gentleness.multiplier != "none" and keys.PENALTY not in cfg.reward_keys:
         problems.append(
             f"gentleness.multiplier={cfg.gentleness.multiplier} weighs the penalty head, which "

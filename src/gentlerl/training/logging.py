@@ -8,6 +8,7 @@ scalar under ``logs/scalars/<name>.csv`` (rows ``step,value``; step = env frames
 from __future__ import annotations
 
 import csv
+import math
 import time
 from collections import deque
 from collections.abc import Mapping, Sequence
@@ -174,13 +175,19 @@ class EpisodeStats:
             for name, column in sums.items():
                 stats[name] += column[mask].sum().item()
             for name, column in maxima.items():
-                stats[name] = max(stats[name], column[mask].max().item())
+                stats[name] = _peak(stats[name], column[mask].max().item())
             if done[mask].any():
                 last = nxt[(mask & done).nonzero()[0, 0]]
                 stats["return_reward"] = last.get(f"episode_{keys.REWARD}").item()
                 stats["length"] = float(last.get("step_count").item())
                 finished.append(self._open.pop(tid))
         return finished
+
+
+def _peak(so_far: float, new: float) -> float:
+    """The larger of two maxima, NaN when either is: python's ``max(0.0, nan)`` is 0.0, which
+    would log an episode with one NaN step at its other steps' max (or 0 N)."""
+    return math.nan if math.isnan(new) else max(so_far, new)
 
 
 def force_unit(force_scale: float = 1.0) -> str:

@@ -10,6 +10,7 @@ the model, the transform turns its predictions into a reward. Rewards are 0 unti
 from __future__ import annotations
 
 import contextlib
+import numbers
 from collections.abc import Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +28,7 @@ from gentlerl.functional import (
     penalty_surprise,
     running_mean_update,
 )
+from gentlerl.functional.constraint import is_finite_number
 from gentlerl.transforms.base import ModelRewardTransform
 
 #: What the curiosity part of r^sp reads (:class:`PenaltySurprise` ``kind``).
@@ -150,6 +152,22 @@ class PenaltySurprise(ModelRewardTransform):
 
     @curiosity_scale.setter
     def curiosity_scale(self, value: tuple[float, int]) -> None:
+        """Set ``(mean, count)``: a finite mean >= 0 and an integer count >= 0 (a checkpoint's
+        entry is checked here, so a tampered one cannot make every later r^sp non-finite)."""
+        valid = (
+            isinstance(value, tuple | list)
+            and len(value) == 2
+            and is_finite_number(value[0])
+            and value[0] >= 0
+            and isinstance(value[1], numbers.Integral)
+            and not isinstance(value[1], bool)
+            and value[1] >= 0
+        )
+        if not valid:
+            shown = tuple(value) if isinstance(value, list) else value
+            raise ValueError(
+                f"PenaltySurprise curiosity_scale={shown!r} must be (mean, count): a finite mean >= 0 and an integer count >= 0"
+            )
         self._scale.copy_(torch.tensor([float(value[0]), float(value[1])], dtype=torch.float64))
 
     def _curiosity(

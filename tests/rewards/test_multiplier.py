@@ -1,0 +1,110 @@
+"""``ImpactMultiplier`` (gentlerl.rewards.multiplier) against hostile input: a NaN impact in a
+collector's batch, a tampered saved state, non-finite or boolean settings; each refused in one
+line naming the value (its steering by hand: tests/rewards/test_tolerance.py)."""
+
+import math
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from gentlerl import keys
+from gentlerl.rewards.multiplier import ImpactMultiplier
+
+
+def _batch(impacts: list[float], done_at_end: bool = True) -> TensorDict:
+    """One trajectory of ``len(impacts)`` steps, one site each, done at its last step."""
+    n = len(impacts)
+    done = torch.zeros(n, 1, dtype=torch.bool)
+    done[-1] = done_at_end
+    return TensorDict(
+        {
+            ("collector", "traj_ids"): torch.zeros(n, dtype=torch.int64),
+            ("next", keys.IMPACT): torch.tensor(impacts).reshape(n, 1),
+            ("next", keys.DONE): done,
+        },
+        batch_size=[n],
+    )
+
+
+def test_a_nan_impact_beside_a_9_newton_peak_is_refused_not_read_as_0_newtons():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0))
+    with pytest.raises(ValueError, match=r"non-finite impact at 1 of 3 steps"):
+        multiplier.observe_batch(_batch([9.0, math.nan, 0.5]))
+    assert multiplier.episodes == 0 and multiplier.weight == 1.0  # nothing observed
+
+
+def test_a_nan_impact_in_an_episode_that_goes_on_is_refused_too():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0))
+    with pytest.raises(ValueError, match="non-finite impact"):
+        multiplier.observe_batch(_batch([math.nan, 9.0], done_at_end=False))
+    assert multiplier.observe_batch(_batch([9.0, 1.0])) > 1.0  # a finite batch steers
+
+
+def _state(**changes):
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0), integral_max=5.0)
+    multiplier.observe([4.0, 3.0])
+    return multiplier, {**multiplier.state_dict(), **changes}
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"recent": [1.0, math.nan]}, r"'recent'=\[1.0, nan\] must be a list of finite impacts >= 0"),
+        ({"recent": [-1.0]}, r"'recent'=\[-1.0\] must be a list of finite impacts >= 0"),
+        ({"recent": "4.0"}, r"'recent'='4.0' must be a list of finite impacts >= 0"),
+        ({"multiplier": math.inf}, "'multiplier'=inf must be a finite number >= 0"),
+        ({"multiplier": -1.0}, "'multiplier'=-1.0 must be a finite number >= 0"),
+        ({"integral": math.nan}, r"'integral'=nan must be a finite number in \[0, 5.0\]"),
+        ({"integral": 6.0}, r"'integral'=6.0 must be a finite number in \[0, 5.0\]"),
+        ({"cost": math.nan}, "'cost'=nan must be a finite number"),
+        ({"cost": True}, "'cost'=True must be a finite number"),
+        ({"episodes": -1}, "'episodes'=-1 must be an integer >= 0"),
+        ({"episodes": 2.5}, "'episodes'=2.5 must be an integer >= 0"),
+        ({"steps": True}, "'steps'=True must be an integer >= 0"),
+        ({"frames": -2}, "'frames'=-2 must be an integer >= -1"),
+        ({"multiplier": None}, "'multiplier'=None must be a finite number >= 0"),
+    ],
+)  # fmt: skip
+def test_a_tampered_state_is_refused_naming_the_entry_and_leaves_the_multiplier_as_it_was(
+    changes, message
+):
+    multiplier, state = _state(**changes)
+    before = multiplier.state_dict()
+    with pytest.raises(ValueError, match=r"ImpactMultiplier state " + message):
+        multiplier.load_state_dict(state)
+    assert multiplier.state_dict() == before
+
+
+def test_a_state_missing_an_entry_is_refused_naming_it():
+    multiplier, state = _state()
+    del state["integral"]
+    with pytest.raises(ValueError, match="ImpactMultiplier state lacks 'integral'"):
+        multiplier.load_state_dict(state)
+
+
+def test_a_saved_state_loads_back_unchanged():
+    multiplier, state = _state()
+    again = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0), integral_max=5.0)
+    again.load_state_dict(state)
+    assert again.state_dict() == state and again.weight == multiplier.weight
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"gains": (math.nan, 0.1, 0.0)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"gains": (1.0, math.inf, 0.0)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"gains": (1.0, 0.1, True)}, r"gains must be \[K_P, K_I, K_D\], each a finite number >= 0"),
+        ({"tolerance": True}, "tolerance must be a finite impact > 0, got True"),
+        ({"window": True}, "window must be an integer >= 1 episode, got True"),
+        ({"window": 2.5}, "window must be an integer >= 1 episode, got 2.5"),
+        ({"period": True}, r"period must be an integer >= 1 env step \(or None\), got True"),
+        ({"period": 0.5}, r"period must be an integer >= 1 env step \(or None\), got 0.5"),
+        ({"integral_max": math.nan}, r"integral_max must be a number >= 0 \(or None\), got nan"),
+        ({"base": True}, "base must be a finite weight >= 0, got True"),
+    ],
+)  # fmt: skip
+def test_non_finite_or_boolean_settings_are_refused_at_construction(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        ImpactMultiplier(**{"tolerance": 2.0, "gains": (1.0, 0.1, 0.0), **kwargs})
