@@ -14,7 +14,8 @@ what its seeds cost one after the other. ``--set`` items are the config fields o
 train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resume`` are the
 command's own. A group is refused in one line before any folder is made: a setting it does not
 batch (``gentleness.multiplier``), a run directory that holds a checkpoint (a group does not
-resume; one stopped before its first checkpoint starts again), repeated seeds, more than ``MAX_SEEDS`` (64) seeds.
+resume; one stopped before its first checkpoint starts again), repeated seeds, more than
+``MAX_SEEDS`` (64) seeds.
 """
 
 from __future__ import annotations

@@ -291,6 +291,6 @@ class IntrinsicRewards(Rescoring):
         for t, (mean, count) in zip(  # [] in checkpoints before curiosity_norm
             self._normalized, state.get("curiosity_scales", []), strict=False
         ):
-            t.curiosity_scale = (float(mean), int(count))
+            t.curiosity_scale = (mean, count)  # the setter checks them
         if self.multiplier is not None and state.get("multiplier") is not None:
             self.multiplier.load_state_dict(state["multiplier"])
