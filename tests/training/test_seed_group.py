@@ -4,7 +4,9 @@ import pytest
 import torch
 
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import LinkRefusedError
 from gentlerl.training import train
+from gentlerl.training.run_lock import RunLock, RunLockedError
 from gentlerl.training.seed_group import SeedGroup, group_problems, train_seeds
 from tests.helpers import read_scalar, tiny_config, toy_env
 
@@ -136,3 +138,27 @@ def test_the_vmapped_rescoring_trains_the_group_as_the_seed_by_seed_one(group_ru
             assert [f for f, _ in got] == [f for f, _ in expected] == [300, 400, 500, 600]
             assert [v for _, v in got] == pytest.approx([v for _, v in expected], rel=1e-4)
         assert abs(read_scalar(tmp_path / f"seed{s}", name)[-1][1]) > 0.01  # r^sp was on
+
+
+def test_a_group_refuses_a_planted_link_before_writing_anything(tmp_path):
+    """Each seed's folder is checked as a lone run's is (its run lock): a planted
+    eval_episodes.csv link is refused, the file it names untouched, no seed's folder left."""
+    outside = tmp_path / "outside.csv"
+    outside.write_text("keep\n")
+    cfgs = _group(tmp_path / "g", total_frames=300, resume="auto")
+    (tmp_path / "g" / "seed1").mkdir(parents=True)
+    (tmp_path / "g" / "seed1" / "eval_episodes.csv").symlink_to(outside)
+    with pytest.raises(LinkRefusedError, match="holds 1 symbolic link"):
+        train_seeds(cfgs, toy_env)
+    assert outside.read_text() == "keep\n" and not (tmp_path / "g" / "seed0").exists()
+
+
+def test_a_group_and_a_lone_run_of_one_of_its_seeds_exclude_each_other(tmp_path):
+    """One writer per run directory: while a seed's folder is locked (a lone `gentlerl train`
+    of it, or its group), the other is refused before it writes."""
+    cfgs = _group(tmp_path, total_frames=300, resume="auto")
+    with RunLock(cfgs[1].run_dir), pytest.raises(RunLockedError, match="is in use by pid"):
+        train_seeds(cfgs, toy_env)
+    assert not (tmp_path / "seed0").exists()
+    with RunLock(cfgs[1].run_dir), pytest.raises(RunLockedError, match="is in use by pid"):
+        train(tiny_config(tmp_path / "seed1", seed=1, total_frames=300, resume="auto"), toy_env)
