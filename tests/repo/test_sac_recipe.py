@@ -9,6 +9,7 @@ import pytest
 import torch
 
 RECIPES = Path(__file__).resolve().parents[2] / "recipes"
+SAC_GRID = RECIPES.parent / "experiments" / "sac_grid" / "grid.sh"
 
 
 def load(name: str):
@@ -102,16 +103,16 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
     out = "sg$(touch X) with space"
     env = {**os.environ, "PATH": f"{stub}:{os.environ['PATH']}", "ARGV_LOG": str(tmp_path / "argv")}
     proc = subprocess.run(
-        ["bash", str(RECIPES / "grids" / "sac_grid.sh"), "--out", out, "--workers", "2"],
+        ["bash", str(SAC_GRID), "--out", out, "--workers", "2"],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert not (tmp_path / "X").exists()
     argv = (tmp_path / "argv").read_text().splitlines()
     assert f"run_dir={out}/touch/r/seed0" in argv and argv.count("seed=2") == 4
-    assert argv[-5:] == ["-m", "gentlerl", "table", "sac", out]  # then the table of the grid
+    assert argv[-2:] == [str(SAC_GRID.parent / "table.py"), out]  # then the table of the grid
     bad = subprocess.run(
-        ["bash", str(RECIPES / "grids" / "sac_grid.sh"), "--workers", "0"],
+        ["bash", str(SAC_GRID), "--workers", "0"],
         capture_output=True,
         text=True,
     )
@@ -119,7 +120,7 @@ def test_the_sac_grid_passes_out_as_one_word_and_runs_nothing_it_names(tmp_path)
     (tmp_path / "argv").unlink()
     method3 = ["--tasks", "touch", "--variants", "r new new_w1", "--utd", "1", "--out", "m3"]
     proc = subprocess.run(
-        ["bash", str(RECIPES / "grids" / "sac_grid.sh"), *method3],
+        ["bash", str(SAC_GRID), *method3],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
