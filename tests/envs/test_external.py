@@ -294,3 +294,13 @@ def test_evaluate_runs_a_finger_policy_on_its_own_env(tmp_path):
     assert out["episodes"] == 1 and out["mean_return"] >= 0.0  # finger-spin pays 0 or 1 a step
     header, row = (tmp_path / "episodes.csv").read_text().splitlines()
     assert header == "frames,episode,max_impact,return" and "nan" not in row
+
+
+def test_make_external_env_is_exported_by_the_envs_package():
+    """The README names ``make_external_env`` among ``gentlerl.envs``' public names: the package
+    exports the module's function itself (lazily, as its other names)."""
+    import gentlerl.envs
+    from gentlerl.envs import make_external_env as exported
+
+    assert exported is make_external_env
+    assert "make_external_env" in gentlerl.envs.__all__

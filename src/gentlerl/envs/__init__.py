@@ -18,6 +18,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "gentlerl.envs.driver": ("DriverSpec", "HandDriver", "HandReading"),
         "gentlerl.envs.driver_env": ("DriverHandEnv",),
         "gentlerl.envs.environment": ("HandEnvironment",),
+        "gentlerl.envs.external": ("make_external_env",),
         "gentlerl.envs.factory": ("SUITE", "TASK_CLASSES", "TASKS", "make_dm_env", "make_env"),
         "gentlerl.envs.hand": ("REGIMES", "Explore", "Fragile", "HandPhysics", "Touch"),
         "gentlerl.envs.sim_driver": ("BioTacModel", "SimulatedDriver"),
