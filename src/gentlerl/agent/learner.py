@@ -14,7 +14,6 @@ its own gradient, and Adam is elementwise, so one fused Adam over the stack is S
 from __future__ import annotations
 
 import copy
-import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ from typing import Any
 import torch
 from tensordict import TensorDict, TensorDictBase
 
+from gentlerl.functional.constraint import is_finite_number
 from gentlerl.models.stacking import (
     load_optimizer_row,
     optimizer_row,
@@ -238,9 +238,7 @@ def _check_options(num_seeds: int, lr_actor: float, lr_critic: float, period: in
     if num_seeds < 1:
         raise ValueError("Learner needs at least one loss (one per seed), got 0")
     for name, lr in (("lr_actor", lr_actor), ("lr_critic", lr_critic)):
-        if isinstance(lr, bool) or not isinstance(lr, int | float) or not math.isfinite(lr):
-            raise ValueError(f"{name} must be a finite number > 0, got {lr!r}")
-        if lr <= 0:
+        if not (is_finite_number(lr) and lr > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {lr!r}")
     if isinstance(period, bool) or not isinstance(period, int) or period < 1:
         raise ValueError(f"target_update_period must be >= 1, got {period!r}")

@@ -14,7 +14,6 @@ follows the learner's ``compile`` / ``cudagraphs`` settings
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -24,6 +23,7 @@ from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.objectives import LossModule
 
+from gentlerl.functional.constraint import is_finite_number
 from gentlerl.models.stacking import (
     load_optimizer_row,
     optimizer_row,
@@ -68,12 +68,7 @@ class ModelStep:
                 f"ModelStep needs a loss with a pure losses(batch, params) (e.g. "
                 f"EnsembleModelLoss), got {type(losses[0]).__name__}"
             )
-        if (
-            isinstance(lr, bool)
-            or not isinstance(lr, int | float)
-            or not math.isfinite(lr)
-            or lr <= 0
-        ):
+        if not (is_finite_number(lr) and lr > 0):
             raise ValueError(f"lr must be a finite number > 0, got {lr!r}")
         device = next(losses[0].parameters()).device
         if cudagraphs and device.type != "cuda":
