@@ -1,7 +1,7 @@
 """Run a declared benchmark suite: each cell's seeds trained, one results file (``suite run``).
 
     gentlerl suite run experiments/suites/after_fix.yaml --out runs/after_fix
-    gentlerl table runs/after_fix/results.csv --out docs/after_fix.md
+    gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
 
 A suite file (:mod:`gentlerl.apps.suite_files`) declares tasks x variants x seeds at a budget.
 Every cell's configs are checked before any folder is made (each refusal one line, all of them

@@ -1,7 +1,7 @@
 """``gentlerl table RESULTS.csv``: the safe-RL table of a suite's results; the grids' tables
 moved out of the library in 0.2.0.
 
-    gentlerl table runs/after_fix/results.csv --out docs/after_fix.md
+    gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
 
 A results file (``gentlerl suite run``'s ``OUT/results.csv``) gives, per task, each variant's
 ``return ± std | max impact ± std (N) | success ± std`` over its seeds
