@@ -46,7 +46,8 @@ def test_top_level_help_lists_every_command(capsys):
         ("video", ["(default: rollout.mp4)", "(default: 240)", "(default: 2)", "(default: 20)"]),
         ("evaluate", ["default: 50", "{explore,touch,fragile}", "default: 0"]),
         ("export", ["(default: docs/policies)", "(default: ['touch', 'fragile'])"]),
-        ("table", ["{sac,gentlebench,method3}", "the grid's --out folder"]),
+        ("table", ["RESULTS", "{sac,gentlebench,method3}", "the grid's --out folder"]),
+        ("suite", ["ACTION", "run train every cell not yet done"]),
         ("seeds", ["SEED [SEED ...]", "(default: [])", "OUT/seed<SEED>"]),
     ],
 )

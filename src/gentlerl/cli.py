@@ -28,9 +28,13 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
     "video": ("gentlerl.apps.video", "MP4 / GIF of a checkpoint's evaluation rollouts"),
     "evaluate": ("gentlerl.apps.evaluate", "success, broken rate and impacts of a saved policy"),
     "claims": ("gentlerl.apps.claims", "the paper's six claims judged on a reproduce.sh grid"),
+    "suite": (
+        "gentlerl.apps.suite",
+        "run a suite file's tasks x variants x seeds (resumable per cell), one results.csv",
+    ),
     "table": (
         "gentlerl.apps.table",
-        "moved in 0.2.0: names the experiments/ script printing a grid's table",
+        "the safe-RL table (return, max impact, success, mean ± std) of a suite's results.csv",
     ),
     "export": (
         "gentlerl.apps.export",

@@ -1,8 +1,17 @@
-"""``gentlerl table GRID``: the grids' tables moved out of the library in 0.2.0.
+"""``gentlerl table RESULTS.csv``: the safe-RL table of a suite's results; the grids' tables
+moved out of the library in 0.2.0.
+
+    gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
+
+A results file (``gentlerl suite run``'s ``OUT/results.csv``) gives, per task, each variant's
+``return ± std | max impact ± std (N) | success ± std`` over its seeds
+(:func:`~gentlerl.analysis.results_table.results_markdown`), printed or written to ``--out``
+whole. The table opens with a comment naming this command and the CSV: a test regenerates every
+such table of the README and docs from its CSV, so a committed table is never edited by hand.
 
 The SAC grid's, GentleBench's and Method III's tables with their pre-registered verdicts are the
-project's own experiments; each is a script of a checkout (:data:`MOVED`). This command only says
-which one to run.
+project's own experiments; each is a script of a checkout (:data:`MOVED`): ``gentlerl table
+sac`` only says which one to run.
 """
 
 from __future__ import annotations
@@ -20,16 +29,52 @@ MOVED: dict[str, str] = {
 }
 
 
-def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> None:
-    """Refuse in one line, naming the script that prints the grid's table now."""
+def csv_table(results: str | Path, source: str | None = None) -> str:
+    """The markdown table of the results file ``results``, its marker naming ``source`` (default:
+    the path as given)."""
+    from gentlerl.analysis.results import read_results
+    from gentlerl.analysis.results_table import results_markdown
+
+    path = Path(results)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such results file (gentlerl suite run writes one)")
+    return results_markdown(read_results(path), str(results) if source is None else source)
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> str:
+    """Print (or write to ``--out``) a results file's table; refuse a moved grid's name in one
+    line, naming the script that prints its table now."""
     parser = command_parser(prog, __doc__.splitlines()[0])
-    parser.add_argument("grid", choices=tuple(MOVED), help="the grid whose table moved")
     parser.add_argument(
-        "runs", nargs="?", type=Path, help="the grid's --out folder (e.g. runs/sac)"
+        "results",
+        metavar="RESULTS",
+        help="a suite's results.csv; or a moved grid's name {" + ",".join(MOVED) + "}",
+    )
+    parser.add_argument(
+        "runs", nargs="?", type=Path, help="with a grid's name: the grid's --out folder"
+    )
+    parser.add_argument(
+        "--out", type=Path, help="write the table to this .md file (default: print)"
     )
     args = parser.parse_args(argv)
-    runs = args.runs or "RUNS_DIR"
-    raise ValueError(
-        f"the {args.grid} grid's table moved out of the library in 0.2.0: run python "
-        f"{MOVED[args.grid]} {runs} from a checkout"
-    )
+    if args.results in MOVED:
+        runs = args.runs or "RUNS_DIR"
+        raise ValueError(
+            f"the {args.results} grid's table moved out of the library in 0.2.0: run python "
+            f"{MOVED[args.results]} {runs} from a checkout"
+        )
+    if args.runs is not None:
+        raise ValueError(f"{args.runs}: a results file's table takes no second argument")
+    if args.out is not None:
+        from gentlerl.apps.outputs import check_output_file
+
+        check_output_file(args.out, (".md",))
+    text = csv_table(args.results)
+    if args.out is None:
+        print(text, end="")
+    else:
+        from gentlerl.files import write_atomic
+
+        write_atomic(args.out, text)
+        print(f"wrote {args.out}")
+    return text
