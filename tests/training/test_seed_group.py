@@ -162,3 +162,19 @@ def test_a_group_and_a_lone_run_of_one_of_its_seeds_exclude_each_other(tmp_path)
     assert not (tmp_path / "seed0").exists()
     with RunLock(cfgs[1].run_dir), pytest.raises(RunLockedError, match="is in use by pid"):
         train(tiny_config(tmp_path / "seed1", seed=1, total_frames=300, resume="auto"), toy_env)
+
+
+def test_a_group_of_three_seeds_is_its_seeds_alone_over_their_first_50_updates(tmp_path):
+    """Each seed draws from its own random streams (exploration noise, replay and model
+    samples) and the vmapped step is each seed's own: a group's logs are its seeds' lone runs',
+    to 1e-5, over 300 frames (50 updates)."""
+    seeds = (0, 1, 2)
+    train_seeds(_group(tmp_path / "group", seeds=seeds, total_frames=300), toy_env)
+    names = (*NAMES, "train/batch_reward", "train/batch_penalty", "train/value_reward")
+    for s in seeds:
+        alone = tmp_path / "alone" / f"seed{s}"
+        train(tiny_config(alone, seed=s, total_frames=300), toy_env)
+        for name in names:
+            got, want = read_scalar(tmp_path / "group" / f"seed{s}", name), read_scalar(alone, name)
+            assert [f for f, _ in got] == [f for f, _ in want] and want, (s, name)
+            assert [v for _, v in got] == pytest.approx([v for _, v in want], rel=1e-5, abs=1e-6)

@@ -45,6 +45,7 @@ from gentlerl.training.env_probe import probe_env
 from gentlerl.training.lockstep import Lockstep, LoopPass
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
+from gentlerl.training.seeding import rng_state
 
 
 class Trainer:
@@ -75,6 +76,8 @@ class Trainer:
         self.wall_s = 0.0  # training wall clock, resumes included (``train/wall_s``)
         self.eval_history: list[dict[str, float]] = []
         self.best_eval: dict[str, float] | None = None
+        #: This run's random streams between its steps (a group's seeds each draw from their own).
+        self.rng = rng_state()
 
     # -- the run -------------------------------------------------------------------------
     def run(self) -> dict[str, float]:

@@ -50,6 +50,7 @@ class SeedRun(Protocol):
     eval_history: list[dict[str, float]]
     best_eval: dict[str, float] | None
     resume_state: dict[str, Any] | None
+    rng: dict[str, Any]  # its random streams between its steps (:func:`~.seeding.own_stream`)
 
     @property
     def policy(self) -> Any: ...  # this seed's acting actor

@@ -6,9 +6,9 @@ its env stream, exploration noise, replay buffers, reward transforms, evaluation
 checkpoints in its own run directory, and its checkpoint resumes as a run of its own
 (``gentlerl train run_dir=... resume=true``). The updates are one: one
 :class:`~gentlerl.agent.Learner` and one :class:`~gentlerl.rewards.model_step.ModelStep` per
-model kind over every seed's networks. A group's numbers are its own (the seeds share the
-process's random stream) and reproduce themselves for the same seeds. :func:`train_seeds` holds
-each seed's run lock while the group trains.
+model kind over every seed's networks. Each seed draws from its own random streams, so a
+group's seeds log what they log alone (to float rounding). :func:`train_seeds` holds each
+seed's run lock while the group trains.
 """
 
 from __future__ import annotations
