@@ -206,3 +206,22 @@ def test_bad_learning_rates_are_refused_in_one_line():
             Learner(_loss(0), lr_actor=lr, lr_critic=1e-3, target_update_period=2)
     with pytest.raises(ValueError, match="target_update_period must be >= 1, got True"):
         Learner(_loss(0), lr_actor=1e-3, lr_critic=1e-3, target_update_period=True)
+
+
+def test_after_each_target_copy_every_seeds_targets_equal_its_online_networks_entry_by_entry():
+    """The invariant TorchRL's HardUpdate broke for the reward models (it copies only what
+    takes a gradient): after every copy, every entry of every seed's target actor and critics,
+    parameters and buffers alike, equals the online one, in the stack and in the seed's loss."""
+    learner = Learner([_loss(0), _loss(1)], **OPTIONS)  # a copy every 2 updates
+    for step in range(6):
+        learner.update(torch.stack([_seeded_batch(16, 10 * step + s) for s in (0, 1)]))
+        if learner.target_counter:
+            continue
+        for online, target in (("actor", "target_actor"), ("value", "target_value")):
+            want, got = learner.params[online], learner.params[target]
+            assert set(want.keys(True, True)) == set(got.keys(True, True))
+            for key, value in want.items(True, True):
+                assert torch.equal(got[key], value), (step, target, key)
+        for loss in learner.losses:
+            for key, value in loss.value_network_params.items(True, True):
+                assert torch.equal(loss.target_value_network_params[key], value)
