@@ -71,3 +71,13 @@ def test_priorities_are_written_into_the_batchs_own_td_error_tensor(call):
     getattr(loss, call)(td)
     assert td["td_error"] is held or td["td_error"].data_ptr() == held.data_ptr()
     assert (held > 0).all()
+
+
+def test_head_weights_and_episodic_flags_are_not_in_the_state_dict():
+    # Both are set from the config and the run state when a run starts or resumes (the PID
+    # multiplier's w_k), so a checkpoint of the loss holds the networks only.
+    loss = _loss()
+    loss.set_head_weight("penalty", 3.0)
+    keys = set(loss.state_dict())
+    assert not {"head_weights", "episodic"} & keys
+    assert any(k.startswith("value_network_params") for k in keys)
