@@ -57,6 +57,11 @@ DESELECT = {
         # monkeypatch's undo leaves torch._inductor.config.cpp without its `cxx` attribute
         "tests/objectives/test_compile.py::test_compile_falls_back_to_eager_with_the_reason",
     ],
+    # ~30 s of torch.compile per run, as above
+    "rewards": [
+        "tests/rewards/test_model_step.py::test_the_compiled_step_gives_the_eager_losses_and_"
+        "parameters"
+    ],
 }
 
 #: pytest's arguments for every mutant: stop at the first failure, quiet, no cache writes.
