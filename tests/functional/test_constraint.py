@@ -130,3 +130,48 @@ def test_the_pid_multiplier_refuses_a_non_finite_number_or_a_bool_naming_it(kwar
 def test_the_method3_equations_refuse_a_non_finite_or_boolean_number_naming_it(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_the_tolerance_rule_holds_below_one_newton_and_for_any_positive_lambda2():
+    # u = T / lambda_2 for every T > 0 and lambda_2 > 0, not only for values above 1.
+    assert tolerance_unit(0.5) == 0.25  # a fragile object: impacts read in units of 0.25 N
+    assert tolerance_unit(2.0, lam2=0.5) == 4.0
+    assert overshoot(1.0, 0.5) == 1.0  # one doubling above a 0.5 N tolerance
+    assert overshoot(0.5, 0.5) == 0.0
+
+
+@pytest.mark.parametrize("lam2", [0.0, -2.0])
+def test_the_tolerance_rule_refuses_a_lambda2_that_is_not_positive(lam2):
+    # u = T / lambda_2: lambda_2 = 0 divides by zero, a negative one flips the penalty's unit.
+    with pytest.raises(ValueError, match=r"lam2 must be a finite number > 0, got"):
+        tolerance_unit(2.0, lam2=lam2)
+
+
+def test_the_running_scale_rate_floors_at_one_percent_by_default():
+    # alpha_k = max(1/k, alpha_min), alpha_min = 0.01: the first batch is the scale itself ...
+    assert running_mean_update(0.0, 0, 5.0) == (5.0, 1)
+    # ... and from the 100th batch on each moves it 1 % of the way: 1 + 0.01 (3 - 1) = 1.02.
+    mean, count = running_mean_update(1.0, 150, 3.0)
+    assert (mean, count) == (pytest.approx(1.02), 151)
+
+
+def test_the_running_scale_rate_may_be_one_and_no_more():
+    # alpha_min = 1: s_k = x_k, the last batch's magnitude alone (the interval is (0, 1]).
+    assert running_mean_update(2.0, 5, 4.0, min_rate=1.0) == (4.0, 6)
+    for bad in (0.0, -0.5, 1.5):
+        with pytest.raises(ValueError, match=r"min_rate must be in \(0, 1\]"):
+            running_mean_update(2.0, 5, 4.0, min_rate=bad)
+
+
+def test_normalized_curiosity_floors_the_scale_at_a_millionth_by_default():
+    # nll / max(s, 1e-6): a scale of 0.5 divides (1 / 0.5 = 2), a zero scale is floored at 1e-6.
+    assert normalized_curiosity(1.0, 0.5) == 2.0
+    assert normalized_curiosity(1.0, 0.0) == pytest.approx(1e6)
+
+
+def test_the_pid_integral_cap_may_be_zero_or_below_one():
+    gains = (1.0, 1.0, 0.0)
+    # integral_max = 0: I_k = min(0, max(0, 0 + 1 * 2)) = 0, a pure P controller: mu = K_P e = 2.
+    assert pid_lagrangian(3.0, 1.0, 0.0, 3.0, gains, integral_max=0.0) == (2.0, 0.0)
+    # integral_max = 0.5: I_k = min(0.5, 2) = 0.5, mu = 2 + 0.5.
+    assert pid_lagrangian(3.0, 1.0, 0.0, 3.0, gains, integral_max=0.5) == (2.5, 0.5)

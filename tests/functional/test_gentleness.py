@@ -229,3 +229,54 @@ def test_information_gain_is_zero_when_the_members_agree_and_grows_with_their_di
     torch.testing.assert_close(information_gain(split, var), torch.full((3,), 0.5 * math.log(3)))
     # Same disagreement, wider members: less to learn.
     assert (information_gain(split, 4 * var) < information_gain(split, var)).all()
+
+
+def test_torque_penalty_of_one_hand_without_batch_dims():
+    # [n_actuators] alone: 2 N m with l = [4, 1] costs (1 - sigmoid(4 (1 - 2))) 2 = 1.964 (eq. 4).
+    out = torque_penalty(torch.tensor([2.0, 0.0]))
+    assert out.shape == () and out.item() == pytest.approx(-(1 - 1 / (1 + math.exp(4))) * 2)
+
+
+def test_mixture_moments_are_taken_per_batch_entry():
+    # Eq. 5 for each entry on its own. Members along dim 0, two entries along dim 1:
+    # entry 0: N(0, 1), N(2, 3) -> mu* = 1, var* = 2 + 1 = 3;
+    # entry 1: N(5, 1), N(5, 1) -> mu* = 5, var* = 1 + 0 = 1.
+    mean = torch.tensor([[0.0, 5.0], [2.0, 5.0]])
+    var = torch.tensor([[1.0, 1.0], [3.0, 1.0]])
+    mu, v = mixture_moments(mean, var)
+    torch.testing.assert_close(mu, torch.tensor([1.0, 5.0]))
+    torch.testing.assert_close(v, torch.tensor([3.0, 1.0]))
+    # The same ensemble along dim 1.
+    mu, v = mixture_moments(mean.T, var.T, dim=1)
+    torch.testing.assert_close(v, torch.tensor([3.0, 1.0]))
+
+
+def test_mixture_moments_refuse_means_and_variances_of_different_shapes():
+    with pytest.raises(ValueError, match=r"same shape, got \(2, 3\) and \(2, 4\)"):
+        mixture_moments(torch.zeros(2, 3), torch.ones(2, 4))
+
+
+def test_gaussian_nll_refuses_a_variance_floor_that_is_not_positive():
+    # The floor exists so that log(sigma^2) is finite: 0 would let a collapsed variance through.
+    for bad in (0.0, -1e-6):
+        with pytest.raises(ValueError, match=r"min_var must be > 0, got"):
+            gaussian_nll(torch.tensor(1.0), torch.tensor(0.0), torch.tensor(1.0), min_var=bad)
+
+
+def test_information_gain_is_taken_per_entry_and_along_the_members_dim():
+    # Entry 0: means -1, 1 (epistemic 1), variances 0.5 -> 1/2 log(1 + 1 / 0.5) = 1/2 log 3.
+    # Entry 1: means 0, 0, variances 2 -> 0. Entry 2: means -1, 1, variances 2 -> 1/2 log 1.5.
+    mean = torch.tensor([[-1.0, 0.0, -1.0], [1.0, 0.0, 1.0]])
+    var = torch.tensor([[0.5, 2.0, 2.0], [0.5, 2.0, 2.0]])
+    expected = torch.tensor([0.5 * math.log(3), 0.0, 0.5 * math.log(1.5)])
+    torch.testing.assert_close(information_gain(mean, var), expected)
+    # Members along dim 1 (e.g. [batch, members]): the same numbers.
+    torch.testing.assert_close(information_gain(mean.T, var.T, dim=1), expected)
+
+
+def test_penalty_surprise_defaults_are_the_papers_lambda_prime():
+    # lambda' = [2, 2] by default (eq. 8): r^f = -1, nll = 0.5 -> sigmoid(2 (2 - 1)) * 1.5;
+    # r^f = -3, nll = 1 -> sigmoid(2 (2 - 3)) * 4.
+    out = penalty_surprise(torch.tensor([-1.0, -3.0]), torch.tensor([0.5, 1.0]))
+    expected = torch.tensor([1.5 / (1 + math.exp(-2)), 4.0 / (1 + math.exp(2))])
+    torch.testing.assert_close(out, expected)
