@@ -4,6 +4,9 @@ hand on a tiny model, and the ensemble losses' target predictions (``predict_tar
 The target copies' normaliser statistics (``ModelHardUpdate``) are tested in
 ``test_model_target.py``."""
 
+import re
+import warnings
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -212,3 +215,129 @@ def test_predict_target_reads_the_target_until_a_copy_then_the_online_model():
     # predict_target leaves the online parameters as they were
     for got, now in zip(_predict_with(loss, loss.model_params, td), online, strict=True):
         torch.testing.assert_close(got, now, rtol=0, atol=0)
+
+
+def test_icm_forward_term_sums_the_features_of_a_batch_of_any_shape():
+    """A ``[2, 4]`` batch: the forward term sums over the features and averages the 8 samples."""
+    loss = ICMLoss(_icm(13))
+    td = TensorDict(
+        {
+            "observation": torch.randn(2, 4, OBS),
+            "action": torch.rand(2, 4, ACT) * 2 - 1,
+            "next": {"observation": torch.randn(2, 4, OBS)},
+        },
+        [2, 4],
+    )
+    out = loss(td)
+    _, inverse, forward = _by_hand(td.reshape(-1), loss.model_params, 0.2)
+    torch.testing.assert_close(out["icm_forward"], forward.detach())
+    torch.testing.assert_close(out["icm_inverse"], inverse.detach())
+
+
+def test_icm_with_detached_params_computes_without_gradient_or_warning():
+    """Parameters given as plain tensors (a frozen copy) stay plain: no gradient, no warning."""
+    loss = ICMLoss(_icm(14))
+    td = _batch(seed=15)
+    frozen = loss.model_params.detach()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        predictions = loss.predict(td, frozen)
+        out = loss.losses(td, frozen)
+    assert not any(t.requires_grad for t in predictions)
+    assert not out["loss_icm"].requires_grad
+    torch.testing.assert_close(out["loss_icm"], _by_hand(td, loss.model_params, 0.2)[0].detach())
+
+
+# --- EnsembleModelLoss: eq. 6 / 8's Gaussian NLL, per member or shared ------------------------
+
+E, B = 2, 4
+
+
+def _penalty_loss(**kwargs):
+    torch.manual_seed(20)
+    loss = EnsembleModelLoss(PenaltyModel(3, 2, ensemble_size=E, hidden=(4,)), **kwargs)
+    ModelHardUpdate(loss, value_network_update_interval=10)  # the target's updater
+    return loss.eval()  # the normaliser statistics stay put
+
+
+def _nll_by_hand(loss, td):
+    """``-log N(y | mu, var)`` of every member on every sample of ``td``: ``[E, *batch]``."""
+    with torch.no_grad(), loss.model_params.to_module(loss.model):
+        mean, var = loss.model.predict(td)
+    y = td["next", "penalty"]
+    return (0.5 * (torch.log(2 * torch.pi * var) + (y - mean) ** 2 / var)).squeeze(-1)
+
+
+def test_ensemble_loss_per_member_reads_member_e_on_its_own_rows():
+    loss = _penalty_loss(name="penalty")
+    assert loss.per_member is True  # the default: bootstrap
+    td = _penalty_batch(E * B, seed=21).reshape(E, B)
+    out = loss(td)
+    assert set(out.keys()) == {"loss_penalty"} and out.batch_size == torch.Size([])
+    rows = torch.stack([_nll_by_hand(loss, td[e])[e] for e in range(E)])
+    torch.testing.assert_close(out["loss_penalty"], rows.mean())
+    shared = _nll_by_hand(loss, td.reshape(-1)).mean()
+    assert not torch.isclose(out["loss_penalty"], shared)
+
+
+def test_ensemble_loss_shared_batch_reads_every_member_on_every_row():
+    loss = _penalty_loss(name="pen", per_member=False)
+    td = _penalty_batch(E * B, seed=22)
+    out = loss(td)
+    assert set(out.keys()) == {"loss_pen"}
+    torch.testing.assert_close(out["loss_pen"], _nll_by_hand(loss, td).mean())
+
+
+def test_ensemble_loss_bootstraps_a_flat_batch_once_per_member():
+    loss = _penalty_loss(name="penalty")
+    td = _penalty_batch(B, seed=23)
+    torch.manual_seed(24)
+    out = loss(td)
+    torch.manual_seed(24)
+    index = torch.randint(B, (E, B))
+    resampled = td[index]
+    rows = torch.stack([_nll_by_hand(loss, resampled[e])[e] for e in range(E)])
+    torch.testing.assert_close(out["loss_penalty"], rows.mean())
+
+
+@pytest.mark.parametrize("n", [1, E, 5])
+def test_bootstrap_shapes_a_flat_batch_as_members_by_rows(n):
+    loss = _penalty_loss(name="penalty")
+    td = _penalty_batch(n, seed=25)
+    out = loss.bootstrap(td)
+    assert out.batch_size == (E, n)
+    assert all(any(torch.equal(row, x) for x in td["observation"]) for row in out["observation"][0])
+    assert loss.bootstrap(td.reshape(1, n).expand(E, n)).batch_size == (E, n)
+
+
+@pytest.mark.parametrize("shape", [(0,), (E + 1, 3), (1, 3), (E, 2, 3)])
+def test_bootstrap_refuses_other_shapes_with_its_message(shape):
+    loss = _penalty_loss(name="penalty")
+    td = _penalty_batch(3, seed=26).expand(*shape[:-1], 3) if len(shape) > 1 else _penalty_batch(0)
+    message = (
+        rf"^per_member=True needs a flat batch \[B\] or one shaped \[ensemble_size={E}, B\], "
+        rf"got {re.escape(str(tuple(td.batch_size)))}$"
+    )
+    with pytest.raises(ValueError, match=message):
+        loss.bootstrap(td)
+
+
+@pytest.mark.parametrize("name", ["", "two words", "1st", "loss-x"])
+def test_ensemble_loss_refuses_a_name_that_is_no_identifier(name):
+    message = (
+        rf"^name must be an identifier \(it becomes loss_<name>\), got {re.escape(repr(name))}$"
+    )
+    with pytest.raises(ValueError, match=message):
+        EnsembleModelLoss(PenaltyModel(3, 2, ensemble_size=E, hidden=(4,)), name=name)
+
+
+def test_ensemble_losses_with_detached_params_computes_without_gradient_or_warning():
+    loss = _penalty_loss(name="penalty", per_member=False)
+    td = _penalty_batch(B, seed=27)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = loss.losses(td, loss.model_params.detach())
+        target = loss.predict_target(td)
+    assert not out["loss_penalty"].requires_grad
+    torch.testing.assert_close(out["loss_penalty"], _nll_by_hand(loss, td).mean())
+    assert not any(t.requires_grad for t in target)
