@@ -1,5 +1,8 @@
 """objectives.compile.compile_unavailable: ``None`` where ``torch.compile`` can run, otherwise the
-reason, one per missing piece (dynamo, inductor's import, a C++ compiler)."""
+reason, one per missing piece (dynamo, inductor's import, a C++ compiler); and what
+``compile_step`` does with it (the eager step and a warning at the caller) and with ``cudagraphs``
+(the step in a ``CudaGraphModule`` with its warmup; a recording stand-in here, so no CUDA and none
+of the real module's process-wide settings)."""
 
 import shutil
 import sys
@@ -8,7 +11,8 @@ import pytest
 import torch
 import torch._inductor.cpp_builder
 
-from gentlerl.objectives.compile import compile_unavailable
+from gentlerl.objectives import compile as compile_module
+from gentlerl.objectives.compile import EagerOnBuildFailure, compile_step, compile_unavailable
 
 
 @pytest.mark.skipif(
@@ -49,3 +53,51 @@ def test_the_patches_are_undone():
     """After the tests above: the real checks are back."""
     assert torch._inductor.cpp_builder.get_cpp_compiler.__module__ == "torch._inductor.cpp_builder"
     assert sys.modules["torch._inductor.cpp_builder"] is torch._inductor.cpp_builder
+
+
+def test_compile_step_without_dynamo_is_the_eager_step_and_warns_the_caller(monkeypatch):
+    monkeypatch.setattr(torch._dynamo, "is_dynamo_supported", lambda: False)
+
+    def step(x):
+        return x + 1
+
+    with pytest.warns(UserWarning) as record:
+        out = compile_step(step, compile=True, name="the dynamics model")
+    assert out is step
+    (warning,) = [w for w in record if "learner.compile" in str(w.message)]
+    assert str(warning.message) == (
+        "learner.compile: torch.compile does not support this Python / platform; "
+        "the dynamics model runs eagerly"
+    )
+    assert warning.filename == __file__  # stacklevel: the line that asked for compile
+
+
+def test_a_build_failure_warns_the_caller_of_the_step():
+    def failing(x):
+        raise torch._dynamo.exc.BackendCompilerFailed(failing, RuntimeError("no"), None)
+
+    step = EagerOnBuildFailure(lambda x: x + 1, failing)
+    with pytest.warns(UserWarning, match="inductor failed to build") as record:
+        assert step(1) == 2
+    assert record[0].filename == __file__
+
+
+class _RecordingCudaGraphModule:
+    def __init__(self, module, **kwargs):
+        self.module, self.kwargs = module, kwargs
+
+
+@pytest.mark.parametrize("warmup", [None, 2])
+def test_cudagraphs_wraps_the_step_with_its_warmup(monkeypatch, warmup):
+    monkeypatch.setattr(compile_module, "CudaGraphModule", _RecordingCudaGraphModule)
+
+    def step(x):
+        return x
+
+    if warmup is None:
+        out = compile_step(step, cudagraphs=True)
+    else:
+        out = compile_step(step, cudagraphs=True, warmup=warmup)
+    assert isinstance(out, _RecordingCudaGraphModule) and out.module is step
+    assert out.kwargs == {"in_keys": [], "out_keys": [], "warmup": 5 if warmup is None else 2}
+    assert compile_step(step) is step  # neither: the step itself
