@@ -78,7 +78,13 @@ def test_cudagraphs_on_cpu_is_a_one_line_error():
 
 
 def test_compile_falls_back_to_eager_with_the_reason(monkeypatch):
-    monkeypatch.setattr(torch._inductor.config.cpp, "cxx", ("/nonexistent/g++",))
+    from torch._inductor import cpp_builder
+
+    def no_compiler():  # as inductor's own check fails without a C++ compiler
+        raise RuntimeError("no working C++ compiler found")
+
+    # (patching config.cpp.cxx instead would leave torch's config without it after the undo)
+    monkeypatch.setattr(cpp_builder, "get_cpp_compiler", no_compiler)
     with pytest.warns(
         UserWarning, match="no C.. compiler for inductor .* the learner runs eagerly"
     ):
