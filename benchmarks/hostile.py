@@ -267,6 +267,35 @@ def child_compile_int(work: Path) -> Outcome:
     return cli_outcome(work, reached, end, f"the run started with learner.compile={value!r}")
 
 
+def child_seeds_set_yes(work: Path) -> Outcome:
+    """``gentlerl seeds 0 1 --set learner.compile=yes --out OUT``: a word where a boolean goes,
+    on the command line of a group (its training replaced by a stand-in)."""
+    import contextlib
+    import io
+
+    import gentlerl.training.seed_group as seed_group
+    from gentlerl import cli
+
+    seen: list[Any] = []
+
+    def train_seeds(cfgs: Any, *_: Any) -> None:
+        seen.append(cfgs[0].learner.compile)
+        raise Started
+
+    seed_group.train_seeds = train_seeds
+    err = io.StringIO()
+    argv = ["seeds", "0", "1", "--set", "learner.compile=yes", "--out", str(work / "out")]
+    try:
+        with contextlib.redirect_stderr(err):
+            code = cli.main(argv)
+    except Started:
+        return "silent accept", f"the group started with learner.compile={seen[0]!r}"
+    text = err.getvalue().strip()
+    if code == 0 or not text:
+        return "silent accept", f"rc {code}, nothing said"
+    return refusal(SystemExit(text), clean=not (work / "out").exists())
+
+
 def child_tolerance(work: Path) -> Outcome:
     """``gentlerl train gentleness.tolerance=1e300``: what a 9 N impact costs at the run's
     tolerance (eq. 5's penalty of the impact in units of the tolerance)."""
@@ -392,6 +421,7 @@ CHILDREN: dict[str, Callable[[Path], Outcome]] = {
     "group-rerun": child_group_rerun,
     "seed-max": child_seed_max,
     "compile-int": child_compile_int,
+    "seeds-set-yes": child_seeds_set_yes,
     "tolerance-1e300": child_tolerance,
     "multiplier-state-nan": lambda w: child_multiplier_state(w, "multiplier", math.nan),
     "multiplier-state-negative": lambda w: child_multiplier_state(w, "multiplier", -1.0),
@@ -632,6 +662,7 @@ TESTS = {
     "learner-lr-inf": "tests/agent/test_learner.py::test_bad_learning_rates_are_refused_in_one_line",
     "compile-int": "tests/apps/test_overrides.py::"
     "test_command_line_errors_are_one_line_naming_the_field_and_the_value",
+    "seeds-set-yes": "tests/apps/test_seeds.py::test_a_refused_group_is_one_line_and_makes_no_folder",
     "group-rerun": "tests/training/test_seed_group.py::"
     "test_a_group_refuses_a_checkpoint_but_reruns_a_group_stopped_before_its_first",
 }
@@ -653,6 +684,7 @@ FINDINGS = {
     "learner-lr-nan": "8: a NaN learning rate taken by Learner",
     "learner-lr-inf": "8: an inf learning rate taken by Learner (beside the NaN)",
     "compile-int": "9: `learner.compile=1` on the command line started a run",
+    "seeds-set-yes": "9: a word as a boolean in `gentlerl seeds --set` (found re-running 9)",
     "group-rerun": "10: a group stopped before its first checkpoint could not be re-run",
 }
 
