@@ -34,15 +34,24 @@ def test_one_config_per_seed_equal_but_for_seed_and_folder(tmp_path):
         (["0", "1", "--set", "hydra.run.dir=x"], "unknown key 'hydra.run.dir'"),
         (["0", "1", "--set", "collector.total_frames=abc"], "must be an integer"),
         (["0", "1", "--set", "resume=true"], "--set 'resume=true': resume is set per seed"),
+        # a word YAML reads as a boolean is not one on a command line (as gentlerl train)
+        *[
+            (["0", "1", "--set", f"learner.compile={v}"], f"learner.compile={v} must be true or")
+            for v in ("yes", "on", "No", "OFF")
+        ],
     ],
 )
-def test_a_refused_group_is_one_line_and_makes_no_folder(tmp_path, capsys, argv, message):
+def test_a_refused_group_is_one_line_and_makes_no_folder(
+    tmp_path, capsys, monkeypatch, argv, message
+):
+    trained = []
+    monkeypatch.setattr(seed_group, "train_seeds", trained.append)  # a group taken: no training
     out = tmp_path / "group"
     assert cli.main(["seeds", *argv, "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert err.startswith("gentlerl seeds: error: ") and err.count("\n") == 1
     assert message in err
-    assert not out.exists()
+    assert not trained and not out.exists()
 
 
 def test_a_run_dir_that_holds_a_checkpoint_is_refused_before_any_folder(tmp_path, capsys):

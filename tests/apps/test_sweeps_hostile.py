@@ -156,6 +156,8 @@ def test_a_sweep_file_cannot_send_its_runs_to_a_ray_cluster(tmp_path, parameters
         ("collector.ray_address=evil.example:6379", "a sweep does not choose where"),
         ("seed=[1", "not a plain number, name or list"),
         ("seed={a: 1}", "expected a number, a name or a list"),
+        ("learner.compile=yes", "learner.compile=yes must be true or false"),
+        ("collector.overlap=on", "collector.overlap=on must be true or false"),
     ],
 )
 def test_set_follows_the_sweep_files_rules(tmp_path, item, match):

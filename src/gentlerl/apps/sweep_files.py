@@ -134,8 +134,8 @@ def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]
 def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, Any]]:
     """``--set`` items as ``(key, value)``, each value read as YAML and held to a sweep file's
     rules: ``field=value`` for a config field (or ``+env.kwargs.NAME=value``, how a task keyword
-    is added), a plain value (no ``${...}`` interpolation), no Ray collector unless
-    ``allow_ray``."""
+    is added), a plain value (no ``${...}`` interpolation), a boolean written ``true`` or
+    ``false`` (not YAML 1.1's ``yes`` / ``on`` ...), no Ray collector unless ``allow_ray``."""
     parsed = []
     for item in items:
         key, sep, text = item.partition("=")
@@ -148,6 +148,10 @@ def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, 
             value = load_yaml(text)
         except yaml.YAMLError:
             raise ValueError(f"{where}: the value is not a plain number, name or list") from None
+        if isinstance(value, bool) and text.strip().lower() not in ("true", "false"):
+            # YAML 1.1 reads yes / no / on / off as booleans; a command line, as gentlerl
+            # train's, takes only true / false
+            raise ValueError(f"{where}: {key}={text.strip()} must be true or false")
         check_value(key, value, where)
         check_cluster(key, value, where, allow_ray)
         parsed.append((key, value))
