@@ -170,15 +170,19 @@ def test_a_suite_files_refusal_names_the_file_and_what_is_wrong(tmp_path, body, 
     assert message in str(refused.value) and "\n" not in str(refused.value)
 
 
-def test_the_after_fix_suite_plans_its_twelve_cells():
-    """The issue's re-measure: 4 tasks x (r, r+rf+rsp, the constrained baseline), 3 seeds."""
+def test_the_after_fix_suite_plans_its_fifteen_cells():
+    """The issue's re-measure: 5 tasks x (r, r+rf+rsp, the constrained baseline), 3 seeds; the
+    three finger tasks at the one tolerance 17.4 N."""
     suite = load_suite(AFTER_FIX)
     assert suite.name == "after_fix" and suite.seeds == (0, 1, 2)
     plans = plan_suite(suite, ROOT / "runs-that-do-not-exist")
     frames = {p.cell.task: p.cfgs[0].collector.total_frames for p in plans}
     assert frames == {
         "touch": 30000, "fragile": 30000, "finger-turn_easy": 100000, "finger-spin": 50000,
+        "finger-turn_hard": 100000,
     }  # fmt: skip
+    assert len(plans) == 15
+    assert {p.cfgs[0].gentleness.tolerance for p in plans if "finger" in p.cell.task} == {17.4}
     base = {p.cell.name: p.cfgs[0].gentleness.multiplier_base for p in plans}
     assert [p.cell.variant for p in plans[:3]] == ["r", "r+rf+rsp", "constrained"]
     assert [p.grouped for p in plans[:3]] == [True, True, False]
