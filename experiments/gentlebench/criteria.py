@@ -1,4 +1,4 @@
-"""GentleBench's pre-registered verdict (docs/GENTLEBENCH.md), one per task and variant."""
+"""GentleBench's pre-registered verdict (docs/log/GENTLEBENCH.md), one per task and variant."""
 
 from __future__ import annotations
 
