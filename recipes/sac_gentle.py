@@ -66,7 +66,7 @@ class SACConfig:
     alpha_init: float = 1.0
     lam_prime: list[float] = field(default_factory=lambda: [2.0, 2.0])  # fragile: [2, 1.5]
     reward_delay: int = 1_000  # model updates, as the D4PG grid's cpu scale
-    # Method III (docs/GENTLEBENCH.md): the impact one step may deal (N), and the penalty's
+    # Method III (docs/log/GENTLEBENCH.md): the impact one step may deal (N), and the penalty's
     # weight steered toward it by a PID multiplier (pid; its period in env steps, its cap, the
     # weight at mu = 0, and the noise-free episodes per PID step: 0 steers on the collected ones)
     tolerance: float | None = None

@@ -6,7 +6,7 @@
 #
 # The grid is experiments/finger_spin/finger_spin.yaml: 9 runs of 50k env steps (10k random first),
 # ~14 min each on one core of a busy 2-core machine (62 env steps/s, r+rf+rsp), ~1-1.5 h with
-# --workers 2. Criteria and results: docs/FINGER.md. The env, its force and its observation come from the config alone:
+# --workers 2. Criteria and results: docs/log/FINGER.md. The env, its force and its observation come from the config alone:
 #   env.name=dm_control:finger-spin    TorchRL's DMControlEnv("finger", "spin"), cast to float32
 #   env.force_adapter (null)           dm_control_touch: force = expm1(touch) [2, 1] N
 #   env.observation_keys (null)        position [4], velocity [3], touch [2] -> observation [9]

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # GentleBench: the method on dm_control contact tasks nobody here wrote, the force read in the unit
-# of the force-tolerance rule (docs/GENTLEBENCH.md: criteria, rule, results).
+# of the force-tolerance rule (docs/log/GENTLEBENCH.md: criteria, rule, results).
 #
 #   bash experiments/gentlebench/grid.sh [--workers N] [--out DIR] [--figures DIR] [--episodes N]
 #                                     [--tasks finger_turn_easy,finger_spin,hopper_stand] [--only KEY=V1,V2 ...]

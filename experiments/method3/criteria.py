@@ -1,4 +1,4 @@
-"""The pre-registered tests of docs/GENTLEBENCH.md's Method III amendments, one function per rule.
+"""The pre-registered tests of docs/log/GENTLEBENCH.md's Method III amendments, one function per rule.
 
 The table they judge is :mod:`experiments.method3.table` (``python experiments/method3/table.py``): task ->
 variant label -> a row with ``score`` (success on the hand, return off it, mean over seeds),

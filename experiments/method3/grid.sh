@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Method III grid (docs/GENTLEBENCH.md, "Method III amendment": criteria written before the runs):
+# Method III grid (docs/log/GENTLEBENCH.md, "Method III amendment": criteria written before the runs):
 # per task, `r` and the paper's `r+rf+rsp` under the stated tolerance, then the steered pair
 # (gentleness.multiplier=pid, curiosity_norm=true): `r+rf` (the constrained baseline) and
 # `r+rf+rsp` (the new method); 3 seeds, 30k env steps, one setting for every task (only the
@@ -15,7 +15,7 @@
 # fourth's pair (a plain Lagrangian on the deployed policy's episodes), _deployedw1 its
 # attribution row (the same with the paper's weight as floor), the fifth's candidate on the fingers.
 # _t394* the sixth's finger-spin at a tolerance the task admits, _budget its finger-turn_easy `r`.
-# Budget: 30k env steps per run; finger_spin 50k (where `r` learns it, docs/FINGER.md);
+# Budget: 30k env steps per run; finger_spin 50k (where `r` learns it, docs/log/FINGER.md);
 # --frames N: N for every task (the sixth amendment's budget probe).
 # Resumable: finished runs (DONE) are skipped; evaluations are redone.
 set -euo pipefail

@@ -1,4 +1,4 @@
-"""The Method III grid's table (docs/GENTLEBENCH.md, "Method III amendment";
+"""The Method III grid's table (docs/log/GENTLEBENCH.md, "Method III amendment";
 ``experiments/method3/grid.sh``): per task, ``r``, the paper's ``r+rf+rsp``, the new method and the
 constrained baseline side by side, in the safe-RL benchmarks' form, with the pre-registered tests
 (:func:`experiments.method3.criteria.method3_verdicts`).

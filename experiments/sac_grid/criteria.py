@@ -1,4 +1,4 @@
-"""The SAC grid's pre-registered verdict (docs/SAC.md), one per task."""
+"""The SAC grid's pre-registered verdict (docs/log/SAC.md), one per task."""
 
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The SAC grid of docs/SAC.md: r and r+rf+rsp on touch and fragile, seeds 0-2, 30k frames each,
+# The SAC grid of docs/log/SAC.md: r and r+rf+rsp on touch and fragile, seeds 0-2, 30k frames each,
 # two runs at a time (one torch thread each), then the table with the pre-registered verdicts
 # (`python experiments/sac_grid/table.py`). Re-running skips finished runs.
 # Usage: bash experiments/sac_grid/grid.sh [--out DIR] [--workers N] [--tasks "touch fragile"]
 #                                       [--variants "r r+rf+rsp"] [--utd R]
-# --variants also takes Method III's rows (docs/SAC.md, Method III amendment): `new` (r+rf+rsp
+# --variants also takes Method III's rows (docs/log/SAC.md, Method III amendment): `new` (r+rf+rsp
 # with the PID Lagrangian on the actor's noise-free episodes at the tolerance T = 2 N, w = mu),
 # `new_w1` (the same with the paper's weight as floor, w = 1 + mu: the fifth amendment's
 # candidate) and `baseline` (r+rf with new's); --utd sets the recipe's utd_ratio.

@@ -1,4 +1,4 @@
-"""The SAC grid's table with its verdicts (:mod:`experiments.sac_grid.criteria`, docs/SAC.md).
+"""The SAC grid's table with its verdicts (:mod:`experiments.sac_grid.criteria`, docs/log/SAC.md).
 
     python experiments/sac_grid/table.py runs/sac
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Reproduce the paper's three experiments, their figures and the final-policy evaluations that the
-# pre-registered criteria of docs/REPRODUCTION.md judge.
+# pre-registered criteria of docs/log/REPRODUCTION.md judge.
 #
 #   bash recipes/grids/reproduce.sh [--scale cpu|paper] [--method METHOD] [--workers N]
 #                                   [--out DIR] [--figures DIR] [--backend local|ray] [--address RAY_ADDRESS]
@@ -30,12 +30,12 @@
 # (gentleness.rescore_surprise=false: r^sp as stored at collection). no-nll-floor
 # (gentleness.surprise_nll_floor=null) was the third amendment's ablation of the floor at 0 and is
 # the same as `changes` today; nll-floor (gentleness.surprise_nll_floor=0) puts that floor back.
-# Method II (docs/REPRODUCTION.md, ninth amendment): rsp-bound (network.penalty_surprise_bound=3:
+# Method II (docs/log/REPRODUCTION.md, ninth amendment): rsp-bound (network.penalty_surprise_bound=3:
 # r^sp's head spans +-3 per step x the horizon), information-gain
 # (gentleness.surprise_kind=information_gain: r^sp's curiosity is the penalty ensemble's
 # disagreement), method2 (both).
 #
-# Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/REPRODUCTION.md (measured there).
+# Wall clock, --scale cpu, 2 workers on a 2-core Xeon: see docs/log/REPRODUCTION.md (measured there).
 #
 # --backend ray runs each grid point as a Ray task (a local Ray with --workers CPUs, or the cluster
 # at --address; --out must then be shared by every node, see docs/DISTRIBUTED.md).
@@ -126,7 +126,7 @@ for sweep in ${sweeps_run//,/ }; do
        --episodes-csv "$(dirname "$1")/final_eval_episodes.csv"' _ {} >> "$evals"
   python -m gentlerl plot "$dir/$sweep" -o "$figures/$scale/$method/$sweep"
   # Shipped policies: the final actor of each touch / fragile run (r+rf+rsp at the primary
-  # lambda'_2 of docs/REPRODUCTION.md) as $policies/<task>/<variant>/seed<k>.pt.
+  # lambda'_2 of docs/log/REPRODUCTION.md) as $policies/<task>/<variant>/seed<k>.pt.
   # The no-reward grid trains no task policy to ship.
   if [ "$sweep" != fig3_noreward_impacts ]; then
     python -m gentlerl export "$dir/$sweep" --out "$policies"

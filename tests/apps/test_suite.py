@@ -170,15 +170,19 @@ def test_a_suite_files_refusal_names_the_file_and_what_is_wrong(tmp_path, body, 
     assert message in str(refused.value) and "\n" not in str(refused.value)
 
 
-def test_the_after_fix_suite_plans_its_twelve_cells():
-    """The issue's re-measure: 4 tasks x (r, r+rf+rsp, the constrained baseline), 3 seeds."""
+def test_the_after_fix_suite_plans_its_fifteen_cells():
+    """The issue's re-measure: 5 tasks x (r, r+rf+rsp, the constrained baseline), 3 seeds; the
+    three finger tasks at the one tolerance 17.4 N."""
     suite = load_suite(AFTER_FIX)
     assert suite.name == "after_fix" and suite.seeds == (0, 1, 2)
     plans = plan_suite(suite, ROOT / "runs-that-do-not-exist")
     frames = {p.cell.task: p.cfgs[0].collector.total_frames for p in plans}
     assert frames == {
         "touch": 30000, "fragile": 30000, "finger-turn_easy": 100000, "finger-spin": 50000,
+        "finger-turn_hard": 100000,
     }  # fmt: skip
+    assert len(plans) == 15
+    assert {p.cfgs[0].gentleness.tolerance for p in plans if "finger" in p.cell.task} == {17.4}
     base = {p.cell.name: p.cfgs[0].gentleness.multiplier_base for p in plans}
     assert [p.cell.variant for p in plans[:3]] == ["r", "r+rf+rsp", "constrained"]
     assert [p.grouped for p in plans[:3]] == [True, True, False]
@@ -186,3 +190,35 @@ def test_the_after_fix_suite_plans_its_twelve_cells():
     assert {str(c.run_dir) for p in plans for c in p.cfgs} >= {
         str(ROOT / "runs-that-do-not-exist" / "finger-spin" / "constrained" / "seed2")
     }
+
+
+def test_export_writes_each_finished_hand_runs_actor_in_one_command(toy_suite, tmp_path, capsys):
+    """``--export DIR``: the shipped policies from the suite's runs (the toy suite trains
+    ``task=touch``), each the final actor of its run, its config's seed and variant."""
+    from gentlerl.apps.suite import main
+    from gentlerl.training.checkpoint import load_checkpoint
+
+    out, rows, _ = toy_suite
+    copy = tmp_path / "toy"
+    shutil.copytree(out, copy)
+    policies = tmp_path / "policies"
+    assert main(["run", str(EXAMPLE), "--out", str(copy), "--export", str(policies)]) == 0
+    written = sorted(p.relative_to(policies).as_posix() for p in policies.rglob("*.pt"))
+    assert written == [
+        "touch/r+rf+rsp/seed0.pt", "touch/r+rf+rsp/seed1.pt", "touch/r/seed0.pt", "touch/r/seed1.pt",
+    ]  # fmt: skip
+    for name in written:
+        config = load_checkpoint(policies / name)["config"]
+        assert f"{config['variant']}/seed{config['seed']}.pt" == name.removeprefix("touch/")
+    assert capsys.readouterr().out.splitlines()[-1] == f"4 policies under {policies}"
+
+
+def test_export_and_dry_run_together_are_refused_in_one_line(tmp_path, capsys):
+    from gentlerl.apps.suite import main
+
+    args = ["run", str(EXAMPLE), "--out", str(tmp_path / "o"), "--dry-run", "--export", "p"]
+    with pytest.raises(SystemExit):
+        main(args)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "--export writes policies; a --dry-run writes nothing" in err
+    assert not (tmp_path / "o").exists() and not Path("p").exists()

@@ -1,7 +1,9 @@
 """The library cites none of the checkout's documents: a docstring, comment or message in
 ``src/`` that sends the reader to ``docs/*.md``, ``benchmarks/RESULTS.md``, the README or another
 markdown file of the repository fails here. An installed library has no such files beside it; a
-measured number that explains a design choice is stated as such, without the citation.
+measured number that explains a design choice is stated as such, without the citation. Neither
+``src/`` nor ``tests/`` cite the research log (``docs/log/``, the amendment history): what the
+code and tests hold true does not rest on it.
 """
 
 import re
@@ -18,10 +20,10 @@ ALLOWED: set[str] = set()
 
 def _documents(root: Path) -> set[str]:
     """The names of the repository's written documents: the markdown files at the top and directly
-    in ``docs/``, ``benchmarks/``, ``experiments/`` (not the ``summary.md`` / ``claims.md`` tables
+    in ``docs/``, ``docs/log/``, ``benchmarks/``, ``experiments/`` (not the ``summary.md`` / ``claims.md`` tables
     that runs write and ``docs/figures/`` keeps)."""
     found = set(root.glob("*.md"))
-    for folder in ("docs", "benchmarks", "experiments"):
+    for folder in ("docs", "docs/log", "benchmarks", "experiments"):
         found |= set((root / folder).glob("*.md"))
     return {path.name for path in found}
 
@@ -84,9 +86,9 @@ def test_what_is_not_a_citation_is_not_found(line):
 def test_a_planted_citation_in_a_source_tree_is_reported(tmp_path):
     (tmp_path / "pkg").mkdir()
     (tmp_path / "pkg" / "clean.py").write_text('"""The summary writes summary.md."""\n')
-    (tmp_path / "pkg" / "cites.py").write_text("x = 1\n# measured (docs/REPRODUCTION.md)\n")
+    (tmp_path / "pkg" / "cites.py").write_text("x = 1\n# measured (docs/log/REPRODUCTION.md)\n")
     assert citations(tmp_path, PATTERN) == {
-        "pkg/cites.py": ["2: # measured (docs/REPRODUCTION.md)"]
+        "pkg/cites.py": ["2: # measured (docs/log/REPRODUCTION.md)"]
     }
 
 
@@ -99,3 +101,25 @@ def test_src_cites_no_document_but_the_allowed_files():
 def test_every_allowed_file_still_cites():
     gone = sorted(ALLOWED - set(citations(SRC, PATTERN)))
     assert not gone, f"these cite no document now: take them off ALLOWED: {gone}"
+
+
+#: The research log's documents.
+LOG = ROOT / "docs" / "log"
+
+
+def test_no_library_or_test_file_cites_the_research_log():
+    assert {"REPRODUCTION.md", "GENTLEBENCH.md", "SAC.md", "FINGER.md"} <= {
+        p.name for p in LOG.glob("*.md")
+    }
+    names = "|".join(re.escape(p.name) for p in LOG.glob("*.md") if p.name != "README.md")
+    log = re.compile(rf"(?<![\w.-])(?:[\w.-]+/)*(?:{names})(?![\w-])")
+    this = Path(__file__).resolve()
+    found = {
+        f"{path.relative_to(ROOT)}:{number}"
+        for folder in (SRC, ROOT / "tests")
+        for path in sorted(folder.rglob("*.py"))
+        if path.resolve() != this
+        for number, line in enumerate(path.read_text().splitlines(), 1)
+        if "docs/log/" in line or log.search(line)
+    }
+    assert not found, f"these cite the research log: {sorted(found)}"

@@ -280,8 +280,8 @@ def test_multi_process_collector_keeps_rows_time_contiguous(tmp_path):
 def test_default_recipe_learns_touch(tmp_path):
     """The default recipe (touch, r+rf+rsp, cpu scale) on the ``easy`` hand reaches >= 0.8
     evaluation success (10 noise-free episodes) on the 2-core CPU, and still succeeds at the end
-    of the run. Measured there on 3 seeds x 100k frames: every seed reaches 1.0 by 15k frames
-    (docs/REPRODUCTION.md). On the default ``paper`` hand it does not yet (one run: evaluation
+    of the run. Measured there on 3 seeds x 100k frames: every seed reaches 1.0 by 15k frames.
+    On the default ``paper`` hand it does not yet (one run: evaluation
     success 0 from 15k to 40k frames), so this test pins the hand it was measured on."""
     cfg = make_config(
         run_dir=str(tmp_path),

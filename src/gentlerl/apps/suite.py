@@ -2,6 +2,8 @@
 
     gentlerl suite run experiments/suites/after_fix.yaml --out runs/after_fix
     gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
+    gentlerl suite run experiments/suites/after_fix.yaml --out runs/after_fix \
+        --cells 'touch/*' --cells 'fragile/*' --export docs/policies
 
 A suite file (:mod:`gentlerl.apps.suite_files`) declares tasks x variants x seeds at a budget.
 Every cell's configs are checked before any folder is made (each refusal one line, all of them
@@ -12,7 +14,10 @@ process. A cell whose runs are all ``DONE`` is not run again, so the command can
 the suite is finished; a seed group does not resume, so a cell interrupted after its seeds' first
 checkpoint is refused until its folder is removed. After each cell, ``DIR/results.csv`` is
 rewritten whole (:mod:`gentlerl.analysis.results`: one row per run, its final evaluation, wall
-clock, the code's version and commit, the date), and a line says how the cell did.
+clock, the code's version and commit, the date), and a line says how the cell did. With
+``--export DIR`` the final actor of every finished hand run (touch, fragile) under ``--out`` is
+then written to ``DIR/<task>/<variant>/seed<k>.pt`` (:func:`gentlerl.apps.export.export_runs`):
+the shipped policies come from one command.
 """
 
 from __future__ import annotations
@@ -269,7 +274,13 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl suite") -> int
         help="only the cells whose task/variant matches this shell pattern (touch/*); repeatable",
     )  # fmt: skip
     run.add_argument("--dry-run", action="store_true", help="check and list the cells only")
+    run.add_argument(
+        "--export", metavar="DIR",
+        help="then write every finished hand run's actor to DIR/<task>/<variant>/seed<k>.pt",
+    )  # fmt: skip
     args = parser.parse_args(argv)
+    if args.export and args.dry_run:
+        parser.error("--export writes policies; a --dry-run writes nothing: give one of them")
     from gentlerl.apps.train import quiet_torchrl_info
 
     quiet_torchrl_info()  # before TorchRL is imported
@@ -283,4 +294,18 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl suite") -> int
     if rows:
         results = Path(args.out) / RESULTS
         print(f"{results}: {len(rows)} runs; their table: gentlerl table {results}")
+    if args.export:
+        _export(args.out, args.export)
     return 0
+
+
+def _export(out: str, to: str) -> None:
+    """The final actor of every finished hand run under ``out``, as ``gentlerl export``."""
+    from gentlerl.apps.export import export_runs
+
+    written = export_runs([out], to)
+    for dest, ckpt in sorted(written.items()):
+        print(f"{dest} <- {ckpt}")
+    print(
+        f"{len(written)} policies under {to}" if written else f"no hand run under {out} to export"
+    )
