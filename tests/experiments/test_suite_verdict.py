@@ -37,9 +37,20 @@ def test_a_task_passes_at_0_8x_the_return_and_0_5x_the_impact_by_medians():
     assert "| 0.86x | 0.42x | gentle and as good |" in lines["| spinr+rf+rsp (3)"]
     assert "110.0 / 12.0 N | 95.0 / 5.0 N" in lines["| spinr+rf+rsp (3)"]
     assert lines["| turnr+rf+rsp (3)"].endswith("| 0.79x | 0.50x | gentle but worse |")
-    # the hand's task is judged but not counted: 1 of the 2 foreign tasks
-    assert "**not met** — 1 of the 2 foreign tasks measured pass (spin)." in text
+    # the hand's task is judged but not counted: 1 of the 2 foreign tasks, the third could decide
+    assert "**undecided** — 1 of the 2 foreign tasks measured pass (spin)." in text
     assert text.startswith(GENERATED.format(source="x.csv")) and text.endswith(END + "\n")
+
+
+@pytest.mark.parametrize(
+    ("passed", "judged", "word"),
+    [(2, 2, "met"), (2, 3, "met"), (1, 3, "not met"), (0, 2, "not met"), (1, 2, "undecided"),
+     (0, 1, "undecided"), (0, 0, "undecided")],
+)  # fmt: skip
+def test_the_goal_is_decided_once_two_of_three_pass_or_no_longer_can(passed, judged, word):
+    from experiments.suites.verdict import goal
+
+    assert goal(passed, judged) == word
 
 
 def test_r_below_20_says_nothing_about_the_return_at_its_budget():
