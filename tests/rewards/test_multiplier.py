@@ -108,3 +108,41 @@ def test_a_saved_state_loads_back_unchanged():
 def test_non_finite_or_boolean_settings_are_refused_at_construction(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ImpactMultiplier(**{"tolerance": 2.0, "gains": (1.0, 0.1, 0.0), **kwargs})
+
+
+def _sites(impacts: list[list[float]], traj: int = 0, done_at_end: bool = True) -> TensorDict:
+    """One trajectory's steps, ``impacts[t]`` the impact of each site at step t."""
+    batch = _batch([0.0] * len(impacts), done_at_end)
+    batch["next", keys.IMPACT] = torch.tensor(impacts)
+    batch["collector", "traj_ids"] = torch.full((len(impacts),), traj)
+    return batch
+
+
+def test_the_non_finite_impacts_are_counted_by_step_and_the_first_is_shown():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0))
+    batch = _sites([[0.5, math.nan], [0.5, 0.5], [math.inf, math.nan]])
+    with pytest.raises(ValueError) as refused:
+        multiplier.observe_batch(batch)
+    assert str(refused.value) == (
+        "(\"next\", 'impact') holds a non-finite impact at 2 of 3 steps (first: [0.5, nan]): "
+        "the episodes' max impact needs finite impacts"
+    )
+
+
+def test_an_episodes_max_impact_is_over_its_sites_and_steps_and_carries_across_batches():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0))
+    multiplier.observe_batch(_sites([[0.125, 0.375], [0.25, 0.125]]))  # a light one: 0.375 N
+    assert list(multiplier.recent) == [0.375]
+    multiplier.observe_batch(_sites([[0.625, 0.0]], traj=1, done_at_end=False))  # goes on
+    assert list(multiplier.recent) == [0.375] and multiplier.episodes == 1
+    multiplier.observe_batch(_sites([[0.125, 0.25]], traj=1))  # ends: its max was 0.625 N
+    assert list(multiplier.recent) == [0.375, 0.625] and multiplier.episodes == 2
+
+
+def test_observe_batch_with_a_period_steps_on_the_frames_it_is_given():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.0, 0.0), period=10)
+    assert multiplier.observe_batch(_sites([[8.0]]), frames=10) == 1.0  # the first call: no step
+    assert multiplier.frames == 10 and multiplier.steps == 0
+    # 8 N at a 2 N tolerance: two doublings over it, K_P = 1: mu = 2
+    assert multiplier.observe_batch(_sites([[8.0]], traj=1), frames=25) == pytest.approx(3.0)
+    assert multiplier.frames == 25 and multiplier.steps == 1
