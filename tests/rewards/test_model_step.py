@@ -1,6 +1,8 @@
 """ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters;
 S seeds' steps in one equal S one-seed steps; a seed's optimiser row round-trips."""
 
+from pathlib import Path
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -170,3 +172,33 @@ def test_seed_batched_dynamics_steps_equal_one_model_step_per_seed():
         mine = batched.losses[s].model_params
         for key, value in single.loss.model_params.items(True, True):
             torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)
+
+
+def test_the_deprecation_names_the_replacement_points_past_the_shim_and_passes_options_on():
+    with pytest.warns(DeprecationWarning) as record:
+        SeedBatchedModelStep(_losses((0, 1)), 1e-2)
+    (warning,) = record
+    assert str(warning.message) == (
+        "gentlerl.rewards.model_step.SeedBatchedModelStep is deprecated since 0.2.0 and "
+        "removed in 0.3.0: use ModelStep(losses, lr), which takes one loss per seed"
+    )
+    assert Path(warning.filename).name != "model_step.py"  # the caller's line, not the shim's
+    with (
+        pytest.warns(DeprecationWarning),
+        pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"),
+    ):
+        SeedBatchedModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+
+
+def test_a_step_takes_a_batch_with_a_seed_axis_and_one_batch_axis():
+    """A model without an ensemble axis (ICM) steps on ``[S, B]``: two batch dims suffice."""
+    from gentlerl.models import ICMModel
+    from gentlerl.objectives import ICMLoss
+
+    torch.manual_seed(0)
+    step = ModelStep(ICMLoss(ICMModel(3, 1, feature_dim=4, hidden=8)), 1e-2)
+    batch = _penalty_batch(0)[0]  # [8]: observation [8, 3], action [8, 1]
+    batch["next", "observation"] = batch["observation"] + 0.1
+    expected = step.loss(batch.clone())["loss_icm"].item()
+    got = step(batch.unsqueeze(0))
+    assert got.shape == (1,) and got.item() == pytest.approx(expected, rel=1e-6)
