@@ -8,10 +8,16 @@ from tensordict import TensorDict
 
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig
-from gentlerl.models import DynamicsModel, ICMModel
+from gentlerl.models import DynamicsModel, ICMModel, PenaltyModel
 from gentlerl.objectives import ICMLoss
 from gentlerl.rewards import IntrinsicRewards
-from gentlerl.transforms import DynamicsSurprise, ForcePenalty, ICMReward, TorquePenalty
+from gentlerl.transforms import (
+    DynamicsSurprise,
+    ForcePenalty,
+    ICMReward,
+    PenaltySurprise,
+    TorquePenalty,
+)
 
 OBS, ACT = 4, 2
 
@@ -174,3 +180,26 @@ def test_the_wear_penalties_read_the_named_force_key_and_the_actuator_force():
             [1.0, -1.0, 0.0])}}
     )  # fmt: skip
     torch.testing.assert_close(torque(effort)["next", keys.TORQUE_PENALTY], torch.tensor([-1.0]))
+
+
+def test_the_penalty_model_is_built_under_seed_plus_1_and_its_surprise_takes_the_settings():
+    settings = GentlenessConfig(
+        model_hidden=8, ensemble_size=2, lam_prime=(3.0, 1.5), surprise_scale=0.5,
+        surprise_nll_floor=0.25, surprise_kind="information_gain", curiosity_norm=True,
+    )  # fmt: skip
+    rewards = IntrinsicRewards(
+        "r+rf+rsp", settings, obs_dim=OBS, action_dim=ACT, feature_shapes={}, seed=4,
+        obs_key="state", force_key="force",
+    )  # fmt: skip
+    loss = rewards.losses["penalty"]
+    expected = PenaltyModel(OBS, ACT, 2, (8, 8, 8), seed=4 + 1, obs_key="state")
+    _assert_same_parameters(loss.model_params, TensorDict.from_module(expected))
+    assert loss.model.obs_key == "state"
+    batch = _transition().expand(2, 6).clone()
+    batch["next", keys.PENALTY] = -torch.rand(2, 6, 1)
+    assert list(loss(batch).keys()) == ["loss_penalty"]
+    transform = rewards.transform[1]
+    assert isinstance(transform, PenaltySurprise) and transform.params is loss.target_model_params
+    assert transform.lam_prime == (3.0, 1.5) and transform.nll_scale == 0.5
+    assert transform.nll_floor == 0.25 and transform.kind == "information_gain"
+    assert transform.normalize and rewards._normalized == [transform]
