@@ -1,6 +1,7 @@
 """ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters;
 S seeds' steps in one equal S one-seed steps; a seed's optimiser row round-trips."""
 
+import warnings
 from pathlib import Path
 
 import pytest
@@ -202,3 +203,47 @@ def test_a_step_takes_a_batch_with_a_seed_axis_and_one_batch_axis():
     expected = step.loss(batch.clone())["loss_icm"].item()
     got = step(batch.unsqueeze(0))
     assert got.shape == (1,) and got.item() == pytest.approx(expected, rel=1e-6)
+
+
+def test_the_first_adam_step_moves_every_weight_by_the_learning_rate():
+    """Adam's first step is lr * m / (sqrt(v) + eps) = lr * g / (|g| + eps): each weight moves by
+    lr (1e-2 here), up to eps / |g|, in one fused kernel."""
+    step = _step()
+    assert step.optimizer.defaults["fused"] is True
+    before = [p.detach().clone() for p in step.optimizer.param_groups[0]["params"]]
+    step(_penalty_batch(0).unsqueeze(0))
+    for old, new in zip(before, step.optimizer.param_groups[0]["params"], strict=True):
+        moved = (new.detach() - old).abs()
+        expected = torch.where(new.grad != 0, 1e-2, 0.0)  # a dead unit's weights stay
+        assert (new.grad != 0).float().mean() > 0.5
+        torch.testing.assert_close(moved, expected, rtol=1e-3, atol=1e-5)
+
+
+def test_without_torch_compile_the_step_warns_naming_the_reward_models_and_runs_eagerly(
+    monkeypatch,
+):
+    from gentlerl.objectives import compile as compiling
+
+    monkeypatch.setattr(compiling, "compile_unavailable", lambda: "no C++ compiler (test)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _step()  # eager by default: nothing to fall back from
+    with pytest.warns(UserWarning) as record:
+        step = _step(compile=True)
+    assert [str(w.message) for w in record] == [
+        "learner.compile: no C++ compiler (test); the reward models runs eagerly"
+    ]
+    assert step(_penalty_batch(0).unsqueeze(0)).shape == (1,)
+
+
+def test_the_refusals_name_what_they_got_in_full():
+    with pytest.raises(
+        ValueError, match=r"^ModelStep needs at least one loss \(one per seed\), got 0$"
+    ):
+        ModelStep([], 1e-2)
+    with pytest.raises(
+        TypeError,
+        match=r"^ModelStep needs a loss with a pure losses\(batch, params\) \(e.g. "
+        r"EnsembleModelLoss\), got Linear$",
+    ):
+        ModelStep([torch.nn.Linear(2, 2)], 1e-2)

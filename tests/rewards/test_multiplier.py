@@ -146,3 +146,28 @@ def test_observe_batch_with_a_period_steps_on_the_frames_it_is_given():
     # 8 N at a 2 N tolerance: two doublings over it, K_P = 1: mu = 2
     assert multiplier.observe_batch(_sites([[8.0]], traj=1), frames=25) == pytest.approx(3.0)
     assert multiplier.frames == 25 and multiplier.steps == 1
+
+
+def test_due_is_true_once_a_period_has_passed_since_the_last_frames_seen_even_from_frame_0():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0), period=10)
+    assert not multiplier.due(100)  # no frames seen yet: the first observe only notes them
+    multiplier.observe([], frames=0)
+    assert not multiplier.due(9) and multiplier.due(10)
+    multiplier.observe([], frames=15)
+    assert not multiplier.due(19) and multiplier.due(20)
+    with pytest.raises(
+        ValueError, match=r"^due\(\) needs a period: without one the PID steps per episode$"
+    ):
+        ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0)).due(10)
+
+
+def test_a_fresh_state_and_one_at_the_bounds_of_each_entry_load():
+    fresh = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0), integral_max=5.0)
+    state = fresh.state_dict()  # no episode, no step, no frames
+    assert state["episodes"] == state["steps"] == 0 and state["frames"] == -1
+    again = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0), integral_max=5.0)
+    again.load_state_dict(state)
+    assert again.state_dict() == state
+    bounds = {**state, "recent": [0.0, 0.5], "integral": 5.0, "multiplier": 0.0, "frames": 0}
+    again.load_state_dict(bounds)
+    assert again.state_dict() == bounds
