@@ -88,6 +88,14 @@ def test_a_seed_shares_its_groups_step_as_its_row_and_saves_that_row():
     first = group[0].state_dict()["optimizers"]["penalty"]["state"][0]["exp_avg"]
     assert not torch.equal(first, group[1].state_dict()["optimizers"]["penalty"]["state"][0][
         "exp_avg"])  # fmt: skip
+    # a seed's saved state loads back into its own row; the other row keeps its new step
+    saved, before = group[1].state_dict(), steps["penalty"].optimizer_state(0)
+    steps["penalty"](torch.stack([r.model_batches()["penalty"] for r in group]))
+    group[1].load_state_dict(saved)
+    row1 = steps["penalty"].optimizer_state(1)["state"][0]["exp_avg"]
+    row0 = steps["penalty"].optimizer_state(0)["state"][0]["exp_avg"]
+    assert torch.equal(row1, saved["optimizers"]["penalty"]["state"][0]["exp_avg"])
+    assert not torch.equal(row0, before["state"][0]["exp_avg"])
     with pytest.raises(
         RuntimeError,
         match=r"^IntrinsicRewards.update: these models step with other seeds' \(share_steps\); "
