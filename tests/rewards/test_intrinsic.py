@@ -151,3 +151,23 @@ def test_rescore_rewards_refuse_a_batch_with_one_n_step_transition_in_full():
         "sample 1-step transitions, or use gentlerl's loop"
     )
     assert rescore.reads == 0
+
+
+def test_the_settings_reach_the_impact_penalty_the_model_steps_the_multiplier_and_the_buffer():
+    rewards = _rewards(
+        lam=(3.0, 4.0), lr_model=0.05, model_buffer_size=7, tolerance=8.0, multiplier="pid",
+        multiplier_gains=(0.5, 0.25, 0.125), multiplier_period=100, multiplier_integral_max=3.0,
+        multiplier_base=0.0,
+    )  # fmt: skip
+    impact = rewards.transform[0]
+    assert impact.lam == (3.0, 4.0) and impact.in_keys == [keys.TOUCH]
+    assert impact.unit == 8.0 / 4.0  # the tolerance rule: T / lambda_2
+    assert rewards.steps["penalty"].optimizer.param_groups[0]["lr"] == 0.05
+    m = rewards.multiplier
+    assert (m.tolerance, m.gains, m.period) == (8.0, (0.5, 0.25, 0.125), 100)
+    assert (m.integral_max, m.base, m.weight) == (3.0, 0.0, 0.0)
+    rewards.extend(rewards.transform(ToyHandEnv().rollout(10)))
+    assert len(rewards.buffer) == 7  # the oldest 3 of 10 transitions overwritten
+    paper = _rewards()
+    assert paper.multiplier is None and paper.transform[0].unit == 1.0
+    assert (paper.num_updates, paper.intrinsic_on, paper.device) == (0, False, torch.device("cpu"))

@@ -84,3 +84,29 @@ def test_learned_components_name_their_model():
         keys.FORCE_PENALTY: None,  # the wear penalties have a transform but no model
         keys.TORQUE_PENALTY: None,
     }
+
+
+def test_the_bounds_of_gamma_and_of_the_spans():
+    assert discounted_horizon(0.0, 5) == 1.0  # gamma 0: the first step's reward only
+    assert discounted_horizon(1.0, 1) == 1.0
+    for gamma, horizon in ((-0.1, 5), (0.5, 0)):
+        with pytest.raises(
+            ValueError,
+            match=rf"^need gamma in \[0, 1\] and horizon >= 1, got {gamma} and {horizon}$",
+        ):
+            discounted_horizon(gamma, horizon)
+    heads = reward_keys("r+rf+rsp")
+    small = {keys.PENALTY_SURPRISE: 0.5}  # a span below 1 is a span
+    lows, highs = head_supports(
+        heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=0.25, spans=small
+    )
+    assert lows == [-1.0, -0.25, -0.5] and highs == [1.0, 0.25, 0.5]
+    with pytest.raises(
+        ValueError,
+        match=r"^spans must map reward keys of \[.*\] to > 0, got \{'penalty_surprise': 0.0\}$",
+    ):
+        head_supports(
+            heads, v_min=-1.0, v_max=1.0, bounded=False, spans={keys.PENALTY_SURPRISE: 0.0}
+        )
+    with pytest.raises(ValueError, match=r"^dense_span must be > 0 \(or None\), got -1.0$"):
+        head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=-1.0)
