@@ -13,6 +13,7 @@ from gentlerl import keys
 from gentlerl.config import GentlenessConfig
 from gentlerl.rewards import IntrinsicRewards
 from gentlerl.rewards.model_step import ModelStep
+from tests.helpers import pressing_rollout
 from tests.toy_env import ToyHandEnv
 
 SMALL = dict(model_hidden=8, ensemble_size=2, model_batch_size=4)
@@ -171,3 +172,101 @@ def test_the_settings_reach_the_impact_penalty_the_model_steps_the_multiplier_an
     paper = _rewards()
     assert paper.multiplier is None and paper.transform[0].unit == 1.0
     assert (paper.num_updates, paper.intrinsic_on, paper.device) == (0, False, torch.device("cpu"))
+
+
+def _trained(**settings) -> IntrinsicRewards:
+    rewards = _rewards(reward_delay=2, rescore_surprise=False, penalty_target_period=3, **settings)
+    rewards.extend(rewards.transform(ToyHandEnv().rollout(12)))
+    for _ in range(2):
+        rewards.update()
+    rewards.transform(pressing_rollout(ToyHandEnv()))  # contact: folds the curiosity scale
+    return rewards
+
+
+def test_a_saved_state_loads_into_a_fresh_object_entry_by_entry():
+    settings = dict(curiosity_norm=True, tolerance=4.0, multiplier="pid")
+    rewards = _trained(**settings)
+    rewards.multiplier.observe([8.0])
+    state = rewards.state_dict()
+    assert state["active"] is True and state["num_updates"] == 2
+    assert state["target_counters"] == {"penalty": 2}
+    assert state["curiosity_scales"] == [list(rewards.transform[1].curiosity_scale)]
+    assert state["curiosity_scales"][0][1] >= 1
+    assert state["multiplier"] == rewards.multiplier.state_dict()
+    fresh = _rewards(reward_delay=2, rescore_surprise=False, penalty_target_period=3, **settings)
+    fresh.load_state_dict(state)
+    again = fresh.state_dict()
+    assert again["active"] is True and again["num_updates"] == 2
+    assert again["target_counters"] == state["target_counters"]
+    assert again["curiosity_scales"] == state["curiosity_scales"]
+    assert again["multiplier"] == state["multiplier"]
+    assert _same_model(fresh, rewards)
+    for index, moments in state["optimizers"]["penalty"]["state"].items():
+        for name, value in moments.items():
+            assert torch.equal(again["optimizers"]["penalty"]["state"][index][name], value)
+    # the next target copy comes after the same number of steps in both
+    fresh.step(), rewards.step()
+    target = rewards.losses["penalty"].target_model_params
+    other = fresh.losses["penalty"].target_model_params
+    assert all(torch.equal(target[k], other[k]) for k in target.keys(True, True))
+
+
+def test_an_older_checkpoint_without_the_newer_entries_loads_with_their_defaults():
+    state = _trained().state_dict()
+    for name in ("num_updates", "curiosity_scales", "multiplier"):
+        del state[name]
+    fresh = _rewards(curiosity_norm=True, tolerance=4.0, multiplier="pid")
+    fresh.load_state_dict(state)
+    assert fresh.num_updates == 0 and fresh.transform[1].curiosity_scale == (0.0, 0)
+    assert (
+        fresh.multiplier.state_dict()
+        == _rewards(tolerance=4.0, multiplier="pid").multiplier.state_dict()
+    )
+    assert fresh.intrinsic_on  # "active" is read
+
+
+def test_extend_keeps_flat_transitions_without_the_touch_grid_and_the_collectors_entries():
+    rewards = _rewards()
+    batch = rewards.transform(ToyHandEnv().rollout(6)).reshape(2, 3)
+    batch[keys.TOUCH_GRID] = torch.zeros(2, 3, 5, 3, 4, 4)
+    batch["next", keys.TOUCH_GRID] = torch.zeros(2, 3, 5, 3, 4, 4)
+    batch["collector", "traj_ids"] = torch.zeros(2, 3, dtype=torch.int64)
+    rewards.extend(batch)
+    stored = rewards.buffer[:]
+    assert stored.batch_size == (6,)
+    assert keys.TOUCH_GRID not in stored.keys() and "collector" not in stored.keys()
+    assert ("next", keys.TOUCH_GRID) not in stored.keys(True)
+    torch.testing.assert_close(stored[keys.OBSERVATION], batch[keys.OBSERVATION].reshape(6, -1))
+    no_model = IntrinsicRewards(
+        "r+rf", GentlenessConfig(), obs_dim=63, action_dim=20, feature_shapes={}
+    )
+    assert no_model.buffer is None and no_model.losses == {}
+    no_model.extend(batch)  # nothing to keep: no model learns
+    assert no_model.model_batches() == {} and no_model.update() == {}
+
+
+def test_an_ensembles_batch_is_one_bootstrap_batch_per_member():
+    rewards = _rewards(ensemble_size=3, model_batch_size=5, rescore_surprise=False)
+    rewards.extend(rewards.transform(ToyHandEnv().rollout(4)))
+    (batch,) = rewards.model_batches().values()
+    assert batch.batch_size == (3, 5)
+
+
+def test_the_rewards_switch_on_at_the_reward_delay_and_the_count_is_kept():
+    rewards = _rewards(reward_delay=3)
+    rewards.step(2)
+    assert not rewards.intrinsic_on and not rewards.transform[1].active
+    rewards.step()
+    assert rewards.num_updates == 3 and rewards.intrinsic_on
+    rewards.step(1)  # an explicit count wins, and may switch them off again
+    assert rewards.num_updates == 1 and not rewards.intrinsic_on
+
+
+def test_without_rescore_surprise_windows_are_left_as_they_are():
+    rewards = _rewards(rescore_surprise=False)
+    assert rewards.rescored == [] and rewards.window_keys == []
+    batch = TensorDict({"next": {keys.PENALTY_SURPRISE: torch.ones(3, 1)}}, [3])
+    assert rewards.rescore_windows(batch, 0.9) == {}
+    assert (batch["next", keys.PENALTY_SURPRISE] == 1).all()
+    paper = _rewards()
+    assert paper.window_keys == [keys.OBSERVATION, keys.ACTION, ("next", keys.PENALTY)]
