@@ -161,3 +161,52 @@ def test_a_vmapped_rescoring_counts_as_rescored_for_the_stale_surprise_guard():
     unmarked.update()
     with pytest.raises(RuntimeError, match="penalty surprise was never scored again"):
         unmarked.update()
+
+
+def test_the_refusals_in_full():
+    with pytest.raises(
+        ValueError, match=r"^WindowRescorer needs at least one seed's rewards, got 0$"
+    ):
+        WindowRescorer([])
+    grouped = [_rewards(s) for s in SEEDS]
+    other = [grouped[0], _rewards(1, lam_prime=(2.0, 3.0)), _rewards(2, reward_delay=5)]
+    with pytest.raises(ValueError) as refused:
+        WindowRescorer(other)
+    assert str(refused.value) == (
+        "WindowRescorer: the rewards of seeds [1, 2] differ from seed 0's in their variant or "
+        "gentleness settings; a group's seeds share both"
+    )
+    variant = IntrinsicRewards(
+        "rf+rsp", GentlenessConfig(reward_delay=0, model_hidden=16, ensemble_size=3),
+        obs_dim=OBS, action_dim=ACT, feature_shapes={},
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"the rewards of seeds \[1\] differ"):
+        WindowRescorer([grouped[0], variant])
+    rescore = WindowRescorer(grouped, vmapped=True)
+    with pytest.raises(ValueError, match=r"^WindowRescorer needs one batch per seed \(3\), got 4$"):
+        rescore([_batch(grouped[0], 0)] * 4, 0.9)
+
+
+def test_without_rescored_rewards_nothing_is_stacked_and_the_batches_are_left_as_they_are():
+    grouped = [_rewards(s, rescore_surprise=False) for s in SEEDS]
+    for vmapped in (True, False):
+        rescore = WindowRescorer(grouped, vmapped=vmapped)
+        assert rescore.transforms == [] and rescore.params == []
+        batches = [_batch(_rewards(s), s) for s in SEEDS]
+        stored = [b["next", keys.PENALTY_SURPRISE].clone() for b in batches]
+        stacked, metrics = rescore(batches, 0.9)
+        assert metrics == [{}, {}, {}] and stacked.batch_size == (3, 9)
+        for s in range(3):
+            assert torch.equal(stacked[s]["next", keys.PENALTY_SURPRISE], stored[s])
+
+
+def test_the_vmapped_stack_holds_each_seeds_target_rows_as_views():
+    grouped = [_rewards(s) for s in SEEDS]
+    rescore = WindowRescorer(grouped, vmapped=True)
+    (seeds,) = rescore.transforms
+    assert [t is r.rescored[0] for t, r in zip(seeds, grouped, strict=True)] == [True] * 3
+    (stack,) = rescore.params
+    for s, t in enumerate(seeds):
+        for key, value in t.params.items(True, True):
+            assert torch.equal(stack[key][s], value)
+            assert value.data_ptr() == stack[key][s].data_ptr()  # a view of row s
