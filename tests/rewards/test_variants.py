@@ -110,3 +110,11 @@ def test_the_bounds_of_gamma_and_of_the_spans():
         )
     with pytest.raises(ValueError, match=r"^dense_span must be > 0 \(or None\), got -1.0$"):
         head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=-1.0)
+
+
+def test_a_bound_at_the_heads_bottom_is_not_applied():
+    """A penalty head (never above 0) whose support starts at 0: capping it there would leave
+    [0, 0], so it keeps [0, v_max]."""
+    heads = [keys.PENALTY]
+    assert head_supports(heads, v_min=0.0, v_max=5.0, bounded=True) == ([0.0], [5.0])
+    assert head_supports(heads, v_min=-0.5, v_max=5.0, bounded=True) == ([-0.5], [0.0])
