@@ -6,6 +6,7 @@ from gentlerl import keys
 from gentlerl.rewards.variants import (
     COMPONENTS,
     VARIANTS,
+    critic_supports,
     discounted_horizon,
     head_supports,
     intrinsic_keys,
@@ -118,3 +119,28 @@ def test_a_bound_at_the_heads_bottom_is_not_applied():
     heads = [keys.PENALTY]
     assert head_supports(heads, v_min=0.0, v_max=5.0, bounded=True) == ([0.0], [5.0])
     assert head_supports(heads, v_min=-0.5, v_max=5.0, bounded=True) == ([-0.5], [0.0])
+
+
+def test_critic_supports_span_the_dense_heads_bounds_times_the_horizon():
+    from gentlerl.config import NetworkConfig
+
+    heads = reward_keys("r+rf+rsp+rF")  # task, penalty, penalty surprise, force penalty
+    network = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=True, dense_reward_bound=0.5,
+        penalty_surprise_bound=3.0,
+    )  # fmt: skip
+    lows, highs = critic_supports(heads, network, horizon=10.0)
+    assert lows == [-4.0, -5.0, -30.0, -5.0]
+    assert highs == [6.0, 0.0, 30.0, 0.0]
+    shared = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=False, dense_reward_bound=None,
+        penalty_surprise_bound=None,
+    )  # fmt: skip
+    assert critic_supports(heads, shared, horizon=10.0) == ([-4.0] * 4, [6.0] * 4)
+    only_rsp = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=True, dense_reward_bound=None,
+        penalty_surprise_bound=2.0,
+    )  # fmt: skip
+    assert critic_supports(heads, only_rsp, horizon=10.0) == (
+        [-4.0, -4.0, -20.0, -4.0], [6.0, 0.0, 20.0, 0.0],
+    )  # fmt: skip
