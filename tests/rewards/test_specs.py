@@ -1,5 +1,7 @@
 """What an env's specs tell the agent (``gentlerl.rewards.specs``)."""
 
+import warnings
+
 import pytest
 import torch
 from torchrl.data import Composite, Unbounded
@@ -14,7 +16,7 @@ from torchrl.envs import (
 
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig
-from gentlerl.rewards import IntrinsicRewards
+from gentlerl.rewards import IntrinsicRewards, SumRewards
 from gentlerl.rewards.specs import (
     check_env_keys,
     env_feature_shapes,
@@ -139,3 +141,63 @@ def test_an_observation_that_is_no_flat_vector_is_refused_naming_the_fix():
         r"\(3, 8\) torch.float32 \(an image or a dict needs an encoder or CatTensors first\)$",
     ):
         env_sizes(SpecEnv(spec), "pixels", keys.TOUCH)
+
+
+def _paper_transform():
+    return IntrinsicRewards(
+        "r+rf", GentlenessConfig(), obs_dim=63, action_dim=20, feature_shapes={}
+    ).transform
+
+
+def test_checking_a_transformed_env_neither_warns_nor_changes_it():
+    env = _relabelled_hand()
+    before = env.rollout(3, break_when_any_done=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. TorchRL's "nested TransformedEnvs are unwrapped"
+        check_env_keys(env, _paper_transform(), ["reward", "penalty"])
+    assert len(env.transform) == 4 and type(env.base_env) is ToyHandEnv
+    after = env.rollout(3, break_when_any_done=False)
+    assert set(after.keys(True, True)) == set(before.keys(True, True))
+    assert after["observation"].shape == (3, 48)
+
+
+def test_a_dict_observation_is_no_observation_and_the_produced_entries_are_listed():
+    env = SpecEnv(Composite(observation=Composite(pos=Unbounded((3,))), touch=Unbounded((5, 3))))
+    with pytest.raises(ValueError) as refused:
+        check_env_keys(env, _paper_transform(), ["reward", "penalty"])
+    assert str(refused.value) == (
+        "key(s) ['observation'] needed by the run are produced neither by the env nor by the "
+        "reward transforms (produced: [\"('observation', 'pos')\", 'impact', 'penalty', "
+        "'reward', 'touch'])"
+    )
+
+
+def test_a_transform_refusing_the_envs_spec_is_named_with_the_envs_observations():
+    env = SpecEnv(Composite(observation=Unbounded((5,)), hand=Composite(touch=Unbounded((5, 3)))))
+    with pytest.raises(ValueError) as refused:
+        check_env_keys(env, SumRewards(["reward", "bonus"]), ["reward"])
+    assert str(refused.value) == (
+        "the env does not produce \"SumRewards sums ['bonus'], which the env's reward spec "
+        "lacks; it has ['reward'] (append the reward transforms first)\" that the reward "
+        "transforms read (env observation keys: [\"('hand', 'touch')\", 'observation'])"
+    )
+
+
+class TimedEnv(SpecEnv):
+    """An env whose class names its episode length as a property (a wrapper's)."""
+
+    @property
+    def time_limit(self) -> int:
+        return 77
+
+
+def test_episode_steps_reads_a_time_limit_property_and_defaults_to_1000():
+    spec = Composite(observation=Unbounded((5,)))
+    assert episode_steps(TimedEnv(spec)) == 77
+    assert episode_steps(SpecEnv(spec)) == 1000
+
+
+def test_the_dynamics_groups_are_the_sources_of_the_observation_key_given():
+    assert env_feature_shapes(_relabelled_hand(), "effort") == {
+        "actuator_force": (20,), "velocity": (24,),
+    }  # fmt: skip
