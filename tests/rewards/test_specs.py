@@ -149,7 +149,11 @@ def _paper_transform():
     ).transform
 
 
-def test_checking_a_transformed_env_neither_warns_nor_changes_it():
+def test_checking_a_transformed_env_neither_warns_nor_changes_it(monkeypatch):
+    from torchrl.envs.transforms import _base
+
+    # TorchRL warns once per process that it unwraps a TransformedEnv given to another
+    monkeypatch.setattr(_base, "_AUTO_UNWRAP_WARNING_EMITTED", False)
     env = _relabelled_hand()
     before = env.rollout(3, break_when_any_done=False)
     with warnings.catch_warnings():
@@ -163,12 +167,13 @@ def test_checking_a_transformed_env_neither_warns_nor_changes_it():
 
 def test_a_dict_observation_is_no_observation_and_the_produced_entries_are_listed():
     env = SpecEnv(Composite(observation=Composite(pos=Unbounded((3,))), touch=Unbounded((5, 3))))
+    env.full_reward_spec = Composite(reward=Unbounded((1,)), bonus=Composite(tip=Unbounded((1,))))
     with pytest.raises(ValueError) as refused:
-        check_env_keys(env, _paper_transform(), ["reward", "penalty"])
+        check_env_keys(env, _paper_transform(), ["reward", "penalty", "bonus"])
     assert str(refused.value) == (
-        "key(s) ['observation'] needed by the run are produced neither by the env nor by the "
-        "reward transforms (produced: [\"('observation', 'pos')\", 'impact', 'penalty', "
-        "'reward', 'touch'])"
+        "key(s) ['observation', 'bonus'] needed by the run are produced neither by the env nor "
+        "by the reward transforms (produced: [\"('bonus', 'tip')\", \"('observation', 'pos')\", "
+        "'impact', 'penalty', 'reward', 'touch'])"
     )
 
 
