@@ -80,3 +80,19 @@ def test_the_chain_names_its_models_device_and_scores_a_batch_where_it_is():
         out = on_cpu(td)
         assert out is td and out.device == td.device
         assert out["next", keys.PENALTY].shape == (4, 1)
+
+
+def test_one_transition_is_scored_and_an_empty_batch_refused_in_full():
+    chain = _chain("r+rf")
+    out = chain(_transition()[:1])
+    assert out["next", keys.PENALTY].shape == (1, 1)
+    with pytest.raises(ValueError) as refused:
+        chain(_transition()[:0])
+    assert str(refused.value) == "the reward transforms got an empty batch (0,)"
+
+
+def test_a_chain_without_a_models_device_scores_a_batch_where_it_is():
+    chain = RewardChain(ImpactPenalty(in_keys=["force"]), obs_key="state", force_key="force")
+    for td in (_transition(), _transition().to("cpu")):
+        out = chain(td)
+        assert out is td and out.device == td.device

@@ -171,3 +171,37 @@ def test_a_fresh_state_and_one_at_the_bounds_of_each_entry_load():
     bounds = {**state, "recent": [0.0, 0.5], "integral": 5.0, "multiplier": 0.0, "frames": 0}
     again.load_state_dict(bounds)
     assert again.state_dict() == bounds
+
+
+def test_the_smallest_settings_are_accepted_and_the_next_ones_down_refused():
+    smallest = ImpactMultiplier(
+        tolerance=0.5, gains=(1.0, 0.1, 0.0), window=1, period=1, integral_max=0.0, base=0.0
+    )
+    assert (smallest.tolerance, smallest.period, smallest.integral_max, smallest.base) == (
+        0.5, 1, 0.0, 0.0,
+    )  # fmt: skip
+    smallest.observe([1.0, 2.0, 3.0], frames=1)
+    assert list(smallest.recent) == [3.0]  # a window of one episode
+    refused = [
+        ({"tolerance": 0.0}, "tolerance must be a finite impact > 0, got 0.0"),
+        ({"window": 0}, "window must be an integer >= 1 episode, got 0"),
+        ({"period": 0}, r"period must be an integer >= 1 env step \(or None\), got 0"),
+        ({"integral_max": -0.5}, r"integral_max must be a number >= 0 \(or None\), got -0.5"),
+        ({"base": -0.5}, "base must be a finite weight >= 0, got -0.5"),
+    ]
+    for kwargs, message in refused:
+        with pytest.raises(ValueError, match=f"^{message}$"):
+            ImpactMultiplier(**{"tolerance": 2.0, "gains": (1.0, 0.1, 0.0), **kwargs})
+
+
+def test_the_window_keeps_the_last_ten_episodes_and_a_gentle_one_counts():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.1, 0.0))
+    multiplier.observe([float(i) for i in range(12)])
+    assert list(multiplier.recent) == [float(i) for i in range(2, 12)]
+    assert multiplier.episodes == 12
+    multiplier.observe([0.0])  # no contact at all: an impact of 0 is an episode too
+    assert multiplier.recent[-1] == 0.0 and multiplier.episodes == 13
+    with pytest.raises(
+        ValueError, match=r"^an episode's max impact must be finite and >= 0, got nan$"
+    ):
+        multiplier.observe([math.nan])
