@@ -205,3 +205,20 @@ def test_the_window_keeps_the_last_ten_episodes_and_a_gentle_one_counts():
         ValueError, match=r"^an episode's max impact must be finite and >= 0, got nan$"
     ):
         multiplier.observe([math.nan])
+
+
+def test_the_derivative_acts_from_the_second_step_on_a_rising_cost():
+    """K_D alone: the first step has no previous cost (no kick from 0); the second sees the
+    median of 8 N and 32 N, 20 N = log2(10) doublings, up from 2: mu = log2(10) - 2."""
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(0.0, 0.0, 1.0))
+    assert multiplier.observe([8.0]) == 1.0 and multiplier.cost == 2.0
+    assert multiplier.observe([32.0]) == pytest.approx(1.0 + math.log2(10.0) - 2.0)
+
+
+def test_a_period_counts_from_frame_0_and_needs_frames():
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(1.0, 0.0, 0.0), period=10)
+    assert multiplier.observe([8.0], frames=0) == 1.0 and multiplier.steps == 0
+    assert multiplier.observe([8.0], frames=10) == pytest.approx(3.0)  # 2 doublings, K_P = 1
+    assert multiplier.steps == 1
+    with pytest.raises(ValueError, match=r"^period=10 steps on env steps: pass frames$"):
+        multiplier.observe([8.0])
