@@ -222,3 +222,15 @@ def test_a_period_counts_from_frame_0_and_needs_frames():
     assert multiplier.steps == 1
     with pytest.raises(ValueError, match=r"^period=10 steps on env steps: pass frames$"):
         multiplier.observe([8.0])
+
+
+def test_the_integral_is_capped_the_steps_counted_and_the_scalars_named():
+    """K_I alone at 8 N (2 doublings over 2 N): the integral would reach 2, 4, ... but stops at
+    integral_max = 1.5, so mu = 1.5."""
+    multiplier = ImpactMultiplier(tolerance=2.0, gains=(0.0, 1.0, 0.0), integral_max=1.5)
+    for _ in range(3):
+        multiplier.observe([8.0])
+    assert multiplier.steps == 3 and multiplier.integral == 1.5
+    assert multiplier.scalars() == {
+        "penalty_weight": 2.5, "multiplier_integral": 1.5, "impact_cost": 2.0,
+    }  # fmt: skip
