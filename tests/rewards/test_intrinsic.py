@@ -3,6 +3,7 @@ model steps (``share_steps``), ``update``'s count and losses, and ``RescoreRewar
 count of the batches it scored."""
 
 import copy
+import warnings
 
 import pytest
 import torch
@@ -270,3 +271,19 @@ def test_without_rescore_surprise_windows_are_left_as_they_are():
     assert (batch["next", keys.PENALTY_SURPRISE] == 1).all()
     paper = _rewards()
     assert paper.window_keys == [keys.OBSERVATION, keys.ACTION, ("next", keys.PENALTY)]
+
+
+def test_the_models_are_seeded_0_and_step_eagerly_by_default(monkeypatch):
+    from gentlerl.objectives import compile as compiling
+
+    settings = GentlenessConfig(**SMALL)
+    default = IntrinsicRewards("r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={})
+    assert _same_model(default, _rewards(seed=0))
+    monkeypatch.setattr(compiling, "compile_unavailable", lambda: "no C++ compiler (test)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # eager: no compile to fall back from
+        IntrinsicRewards("r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={})
+    with pytest.warns(UserWarning, match="no C.. compiler \\(test\\); the reward models runs"):
+        IntrinsicRewards(
+            "r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={}, compile=True
+        )
