@@ -1,6 +1,9 @@
 """ModelStep: a reward model's step, eager or compiled, gives the same losses and parameters;
 S seeds' steps in one equal S one-seed steps; a seed's optimiser row round-trips."""
 
+import warnings
+from pathlib import Path
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -170,3 +173,77 @@ def test_seed_batched_dynamics_steps_equal_one_model_step_per_seed():
         mine = batched.losses[s].model_params
         for key, value in single.loss.model_params.items(True, True):
             torch.testing.assert_close(mine[key], value, rtol=1e-5, atol=1e-6)
+
+
+def test_the_deprecation_names_the_replacement_points_past_the_shim_and_passes_options_on():
+    with pytest.warns(DeprecationWarning) as record:
+        SeedBatchedModelStep(_losses((0, 1)), 1e-2)
+    (warning,) = record
+    assert str(warning.message) == (
+        "gentlerl.rewards.model_step.SeedBatchedModelStep is deprecated since 0.2.0 and "
+        "removed in 0.3.0: use ModelStep(losses, lr), which takes one loss per seed"
+    )
+    assert Path(warning.filename).name != "model_step.py"  # the caller's line, not the shim's
+    with (
+        pytest.warns(DeprecationWarning),
+        pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"),
+    ):
+        SeedBatchedModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+
+
+def test_a_step_takes_a_batch_with_a_seed_axis_and_one_batch_axis():
+    """A model without an ensemble axis (ICM) steps on ``[S, B]``: two batch dims suffice."""
+    from gentlerl.models import ICMModel
+    from gentlerl.objectives import ICMLoss
+
+    torch.manual_seed(0)
+    step = ModelStep(ICMLoss(ICMModel(3, 1, feature_dim=4, hidden=8)), 1e-2)
+    batch = _penalty_batch(0)[0]  # [8]: observation [8, 3], action [8, 1]
+    batch["next", "observation"] = batch["observation"] + 0.1
+    expected = step.loss(batch.clone())["loss_icm"].item()
+    got = step(batch.unsqueeze(0))
+    assert got.shape == (1,) and got.item() == pytest.approx(expected, rel=1e-6)
+
+
+def test_the_first_adam_step_moves_every_weight_by_the_learning_rate():
+    """Adam's first step is lr * m / (sqrt(v) + eps) = lr * g / (|g| + eps): each weight moves by
+    lr (1e-2 here), up to eps / |g|, in one fused kernel."""
+    step = _step()
+    assert step.optimizer.defaults["fused"] is True
+    before = [p.detach().clone() for p in step.optimizer.param_groups[0]["params"]]
+    step(_penalty_batch(0).unsqueeze(0))
+    for old, new in zip(before, step.optimizer.param_groups[0]["params"], strict=True):
+        moved = (new.detach() - old).abs()
+        expected = torch.where(new.grad != 0, 1e-2, 0.0)  # a dead unit's weights stay
+        assert (new.grad != 0).float().mean() > 0.5
+        torch.testing.assert_close(moved, expected, rtol=1e-3, atol=1e-5)
+
+
+def test_without_torch_compile_the_step_warns_naming_the_reward_models_and_runs_eagerly(
+    monkeypatch,
+):
+    from gentlerl.objectives import compile as compiling
+
+    monkeypatch.setattr(compiling, "compile_unavailable", lambda: "no C++ compiler (test)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _step()  # eager by default: nothing to fall back from
+    with pytest.warns(UserWarning) as record:
+        step = _step(compile=True)
+    assert [str(w.message) for w in record] == [
+        "learner.compile: no C++ compiler (test); the reward models runs eagerly"
+    ]
+    assert step(_penalty_batch(0).unsqueeze(0)).shape == (1,)
+
+
+def test_the_refusals_name_what_they_got_in_full():
+    with pytest.raises(
+        ValueError, match=r"^ModelStep needs at least one loss \(one per seed\), got 0$"
+    ):
+        ModelStep([], 1e-2)
+    with pytest.raises(
+        TypeError,
+        match=r"^ModelStep needs a loss with a pure losses\(batch, params\) \(e.g. "
+        r"EnsembleModelLoss\), got Linear$",
+    ):
+        ModelStep([torch.nn.Linear(2, 2)], 1e-2)

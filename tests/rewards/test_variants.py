@@ -6,6 +6,7 @@ from gentlerl import keys
 from gentlerl.rewards.variants import (
     COMPONENTS,
     VARIANTS,
+    critic_supports,
     discounted_horizon,
     head_supports,
     intrinsic_keys,
@@ -84,3 +85,62 @@ def test_learned_components_name_their_model():
         keys.FORCE_PENALTY: None,  # the wear penalties have a transform but no model
         keys.TORQUE_PENALTY: None,
     }
+
+
+def test_the_bounds_of_gamma_and_of_the_spans():
+    assert discounted_horizon(0.0, 5) == 1.0  # gamma 0: the first step's reward only
+    assert discounted_horizon(1.0, 1) == 1.0
+    for gamma, horizon in ((-0.1, 5), (0.5, 0)):
+        with pytest.raises(
+            ValueError,
+            match=rf"^need gamma in \[0, 1\] and horizon >= 1, got {gamma} and {horizon}$",
+        ):
+            discounted_horizon(gamma, horizon)
+    heads = reward_keys("r+rf+rsp")
+    small = {keys.PENALTY_SURPRISE: 0.5}  # a span below 1 is a span
+    lows, highs = head_supports(
+        heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=0.25, spans=small
+    )
+    assert lows == [-1.0, -0.25, -0.5] and highs == [1.0, 0.25, 0.5]
+    with pytest.raises(
+        ValueError,
+        match=r"^spans must map reward keys of \[.*\] to > 0, got \{'penalty_surprise': 0.0\}$",
+    ):
+        head_supports(
+            heads, v_min=-1.0, v_max=1.0, bounded=False, spans={keys.PENALTY_SURPRISE: 0.0}
+        )
+    with pytest.raises(ValueError, match=r"^dense_span must be > 0 \(or None\), got -1.0$"):
+        head_supports(heads, v_min=-1.0, v_max=1.0, bounded=False, dense_span=-1.0)
+
+
+def test_a_bound_at_the_heads_bottom_is_not_applied():
+    """A penalty head (never above 0) whose support starts at 0: capping it there would leave
+    [0, 0], so it keeps [0, v_max]."""
+    heads = [keys.PENALTY]
+    assert head_supports(heads, v_min=0.0, v_max=5.0, bounded=True) == ([0.0], [5.0])
+    assert head_supports(heads, v_min=-0.5, v_max=5.0, bounded=True) == ([-0.5], [0.0])
+
+
+def test_critic_supports_span_the_dense_heads_bounds_times_the_horizon():
+    from gentlerl.config import NetworkConfig
+
+    heads = reward_keys("r+rf+rsp+rF")  # task, penalty, penalty surprise, force penalty
+    network = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=True, dense_reward_bound=0.5,
+        penalty_surprise_bound=3.0,
+    )  # fmt: skip
+    lows, highs = critic_supports(heads, network, horizon=10.0)
+    assert lows == [-4.0, -5.0, -30.0, -5.0]
+    assert highs == [6.0, 0.0, 30.0, 0.0]
+    shared = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=False, dense_reward_bound=None,
+        penalty_surprise_bound=None,
+    )  # fmt: skip
+    assert critic_supports(heads, shared, horizon=10.0) == ([-4.0] * 4, [6.0] * 4)
+    only_rsp = NetworkConfig(
+        v_min=-4.0, v_max=6.0, bounded_support=True, dense_reward_bound=None,
+        penalty_surprise_bound=2.0,
+    )  # fmt: skip
+    assert critic_supports(heads, only_rsp, horizon=10.0) == (
+        [-4.0, -4.0, -20.0, -4.0], [6.0, 0.0, 20.0, 0.0],
+    )  # fmt: skip

@@ -107,3 +107,106 @@ def test_a_batch_per_seed_is_needed_and_the_cpu_scores_seed_by_seed():
     no_window = [_batch(r, s).exclude("window") for r, s in zip(grouped, SEEDS, strict=True)]
     with pytest.raises(KeyError, match="needs each transition's window of steps"):
         WindowRescorer(grouped, vmapped=True)(no_window, 0.9)
+
+
+def test_one_seed_vmapped_equals_its_own_rescoring():
+    single, grouped = _rewards(0), _rewards(0)
+    batch = _batch(single, 0)
+    expected = single.rescore_windows(batch, 0.9)
+    stacked, (got,) = WindowRescorer([grouped], vmapped=True)([_batch(grouped, 0)], 0.9)
+    torch.testing.assert_close(
+        stacked[0]["next", keys.PENALTY_SURPRISE], batch["next", keys.PENALTY_SURPRISE]
+    )
+    assert got == pytest.approx(expected, rel=1e-5) and got
+
+
+def _contacts(batch, steps: int):
+    """``batch`` with a penalty (contact) at its first ``steps`` window steps only, in its
+    first transitions' first steps (always counted: every window has at least one step)."""
+    penalty = batch["window", "next", keys.PENALTY]
+    penalty.zero_()
+    penalty[:steps, 0] = -1.0
+    return batch
+
+
+@pytest.mark.parametrize("vmapped", [True, False], ids=["vmapped", "seed_by_seed"])
+def test_a_seed_without_contact_has_no_per_contact_mean_and_one_with_one_has_its_value(vmapped):
+    """Seed 0: no contact step, no ``_per_contact_step`` entry (no 0 / 0); seed 1: one contact
+    step, whose rescored r^sp is the mean; seed 2: two."""
+    grouped = [_rewards(s) for s in SEEDS]
+    batches = [_contacts(_batch(r, s), s) for r, s in zip(grouped, SEEDS, strict=True)]
+    stacked, metrics = WindowRescorer(grouped, vmapped=vmapped)(batches, 0.9)
+    key = "penalty_surprise_per_contact_step"
+    assert metrics[0] == {}
+    assert (stacked[0]["next", keys.PENALTY_SURPRISE] == 0).all()  # r^sp needs a contact
+    # seed 1's one contact step is transition 0's first: its n-step r^sp is that step's alone
+    assert metrics[1][key] == pytest.approx(stacked[1]["next", keys.PENALTY_SURPRISE][0].item())
+    assert metrics[1][key] != 0
+    assert set(metrics[2]) == {key}
+
+
+def test_a_vmapped_rescoring_counts_as_rescored_for_the_stale_surprise_guard():
+    """The group's vmapped scorer marks every seed's surprise rescored: their updates with the
+    rewards on then run (without it the guard stops the second: never rescored)."""
+    grouped = [_rewards(s, model_batch_size=4) for s in SEEDS]
+    batches = [_batch(r, s) for r, s in zip(grouped, SEEDS, strict=True)]
+    WindowRescorer(grouped, vmapped=True)(batches, 0.9)
+    for rewards in grouped:
+        rewards.extend(rewards.rescored[0](_trajectory(obs_dim=OBS, act_dim=ACT)))
+        for _ in range(3):
+            rewards.update()
+        assert rewards.intrinsic_on and rewards.num_updates == 3
+    unmarked = _rewards(0, model_batch_size=4)
+    unmarked.extend(unmarked.rescored[0](_trajectory(obs_dim=OBS, act_dim=ACT)))
+    unmarked.update()
+    with pytest.raises(RuntimeError, match="penalty surprise was never scored again"):
+        unmarked.update()
+
+
+def test_the_refusals_in_full():
+    with pytest.raises(
+        ValueError, match=r"^WindowRescorer needs at least one seed's rewards, got 0$"
+    ):
+        WindowRescorer([])
+    grouped = [_rewards(s) for s in SEEDS]
+    other = [grouped[0], _rewards(1, lam_prime=(2.0, 3.0)), _rewards(2, reward_delay=5)]
+    with pytest.raises(ValueError) as refused:
+        WindowRescorer(other)
+    assert str(refused.value) == (
+        "WindowRescorer: the rewards of seeds [1, 2] differ from seed 0's in their variant or "
+        "gentleness settings; a group's seeds share both"
+    )
+    variant = IntrinsicRewards(
+        "rf+rsp", GentlenessConfig(reward_delay=0, model_hidden=16, ensemble_size=3),
+        obs_dim=OBS, action_dim=ACT, feature_shapes={},
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"the rewards of seeds \[1\] differ"):
+        WindowRescorer([grouped[0], variant])
+    rescore = WindowRescorer(grouped, vmapped=True)
+    with pytest.raises(ValueError, match=r"^WindowRescorer needs one batch per seed \(3\), got 4$"):
+        rescore([_batch(grouped[0], 0)] * 4, 0.9)
+
+
+def test_without_rescored_rewards_nothing_is_stacked_and_the_batches_are_left_as_they_are():
+    grouped = [_rewards(s, rescore_surprise=False) for s in SEEDS]
+    for vmapped in (True, False):
+        rescore = WindowRescorer(grouped, vmapped=vmapped)
+        assert rescore.transforms == [] and rescore.params == []
+        batches = [_batch(_rewards(s), s) for s in SEEDS]
+        stored = [b["next", keys.PENALTY_SURPRISE].clone() for b in batches]
+        stacked, metrics = rescore(batches, 0.9)
+        assert metrics == [{}, {}, {}] and stacked.batch_size == (3, 9)
+        for s in range(3):
+            assert torch.equal(stacked[s]["next", keys.PENALTY_SURPRISE], stored[s])
+
+
+def test_the_vmapped_stack_holds_each_seeds_target_rows_as_views():
+    grouped = [_rewards(s) for s in SEEDS]
+    rescore = WindowRescorer(grouped, vmapped=True)
+    (seeds,) = rescore.transforms
+    assert [t is r.rescored[0] for t, r in zip(seeds, grouped, strict=True)] == [True] * 3
+    (stack,) = rescore.params
+    for s, t in enumerate(seeds):
+        for key, value in t.params.items(True, True):
+            assert torch.equal(stack[key][s], value)
+            assert value.data_ptr() == stack[key][s].data_ptr()  # a view of row s
