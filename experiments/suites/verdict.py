@@ -45,6 +45,11 @@ def medians(rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
     }
 
 
+def _ratio(x: float) -> str:
+    """``0.86x``; ``—`` where ``r``'s median is 0 and the ratio undefined."""
+    return "—" if x != x else f"{x:.2f}x"
+
+
 def _budget(frames: int) -> str:
     return f"{frames // 1000}k" if frames % 1000 == 0 else str(frames)
 
@@ -70,7 +75,7 @@ def task_lines(task: str, rows: Sequence[Mapping[str, Any]]) -> tuple[list[str],
         lines.append(
             f"| {task} | {variant} ({len(runs)}) | {r['median_return']:.1f} / "
             f"{r['median_impact']:.1f} N | {other['median_return']:.1f} / "
-            f"{other['median_impact']:.1f} N | {ret:.2f}x | {imp:.2f}x | {verdict} |"
+            f"{other['median_impact']:.1f} N | {_ratio(ret)} | {_ratio(imp)} | {verdict} |"
         )
     return lines, label
 

@@ -29,7 +29,6 @@ WITHOUT_A_TEST = {
     "gentlerl.envs.rendering",
     "gentlerl.envs.task_names",
     "gentlerl.models.layers",
-    "gentlerl.rewards.chain",
     "gentlerl.training.env_probe",
     "gentlerl.training.migration",  # old checkpoints' configs: tests/config/test_config.py
     "gentlerl.training.policy_weights",
