@@ -65,6 +65,10 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 
+if str(ROOT / "benchmarks") not in sys.path:  # mutation.py's machine(), run as a script or not
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+from mutation import machine  # noqa: E402
+
 CLASSES = (
     "refused",
     "safe",
@@ -734,20 +738,6 @@ def table(rows: list[tuple[Probe, str, str, float]]) -> list[str]:
     lines += ["", "| class | probes |", "| --- | ---: |"]
     lines += [f"| {kind} | {counts[kind]} |" for kind in CLASSES]
     return lines
-
-
-def machine() -> tuple[str, str, str]:
-    """``nproc``, the CPU model (``/proc/cpuinfo``) and ``uptime``."""
-    nproc = subprocess.run(["nproc"], capture_output=True, text=True).stdout.strip()
-    model = "unknown"
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    return nproc, model, uptime
 
 
 def tree_commit(src: Path) -> str:

@@ -2,12 +2,12 @@
 GentleBench's thresholds, the goal counted over foreign tasks only; and every committed verdict
 block is what its CSV gives."""
 
-import re
 from pathlib import Path
 
 import pytest
 
 from experiments.suites.verdict import END, GENERATED, verdict_markdown
+from gentlerl.analysis.results_table import block_pattern
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -61,13 +61,7 @@ def test_r_below_20_says_nothing_about_the_return_at_its_budget():
     assert "| not judged: r does not learn at 50k; gentler |" in verdict_markdown(rows, "x.csv")
 
 
-_BLOCK = re.compile(
-    re.escape(GENERATED).replace(re.escape("{source}"), r"(?P<source>[^`\s]+)")
-    + r".*?"
-    + re.escape(END)
-    + r"\n",
-    re.DOTALL,
-)
+_BLOCK = block_pattern(GENERATED, END)
 BLOCKS = [
     (path, m["source"], m[0])
     for path in sorted([*ROOT.glob("*.md"), *ROOT.glob("docs/**/*.md")])

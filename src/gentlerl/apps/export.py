@@ -72,6 +72,17 @@ def export_runs(
     return written
 
 
+def export_and_list(out: str | os.PathLike, to: str | os.PathLike) -> None:
+    """The final actor of every finished hand run under ``out`` (``gentlerl suite run --export``),
+    each file printed with the checkpoint it came from."""
+    written = export_runs([out], to)
+    for dest, ckpt in sorted(written.items()):
+        print(f"{dest} <- {ckpt}")
+    print(
+        f"{len(written)} policies under {to}" if written else f"no hand run under {out} to export"
+    )
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl export") -> None:
     """Export the runs named on the command line; print each file with its size."""
     parser = command_parser(prog, __doc__.splitlines()[0])

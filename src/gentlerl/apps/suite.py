@@ -14,10 +14,9 @@ process. A cell whose runs are all ``DONE`` is not run again, so the command can
 the suite is finished; a seed group does not resume, so a cell interrupted after its seeds' first
 checkpoint is refused until its folder is removed. After each cell, ``DIR/results.csv`` is
 rewritten whole (:mod:`gentlerl.analysis.results`: one row per run, its final evaluation, wall
-clock, the code's version and commit, the date), and a line says how the cell did. With
-``--export DIR`` the final actor of every finished hand run (touch, fragile) under ``--out`` is
-then written to ``DIR/<task>/<variant>/seed<k>.pt`` (:func:`gentlerl.apps.export.export_runs`):
-the shipped policies come from one command.
+clock, the code's version and commit, the date), and a line says how the cell did. ``--export
+DIR`` then writes every finished hand run's final actor to ``DIR/<task>/<variant>/seed<k>.pt``
+(:func:`gentlerl.apps.export.export_runs`): the shipped policies from one command.
 """
 
 from __future__ import annotations
@@ -295,17 +294,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl suite") -> int
         results = Path(args.out) / RESULTS
         print(f"{results}: {len(rows)} runs; their table: gentlerl table {results}")
     if args.export:
-        _export(args.out, args.export)
+        from gentlerl.apps.export import export_and_list
+
+        export_and_list(args.out, args.export)
     return 0
-
-
-def _export(out: str, to: str) -> None:
-    """The final actor of every finished hand run under ``out``, as ``gentlerl export``."""
-    from gentlerl.apps.export import export_runs
-
-    written = export_runs([out], to)
-    for dest, ckpt in sorted(written.items()):
-        print(f"{dest} <- {ckpt}")
-    print(
-        f"{len(written)} policies under {to}" if written else f"no hand run under {out} to export"
-    )
