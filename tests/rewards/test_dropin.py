@@ -2,6 +2,7 @@
 ``RescoreRewards`` (``rescore_transform``), the self-counting schedule and the stale-model guard."""
 
 import multiprocessing
+import re
 
 import pytest
 import torch
@@ -252,7 +253,11 @@ def test_from_env_refuses_a_force_that_is_no_force(shape, dtype, message):
 
 def test_update_before_extend_and_empty_batches_are_named():
     rewards = small_rewards()
-    with pytest.raises(RuntimeError, match=r"update\(\) before any extend\(\): the models have"):
+    message = (
+        "IntrinsicRewards.update() before any extend(): the models have no transition to learn "
+        "from (extend() each collected, transformed batch first)"
+    )
+    with pytest.raises(RuntimeError, match=f"^{re.escape(message)}$"):
         rewards.update()
     batch = ToyHandEnv().rollout(3)
     with pytest.raises(ValueError, match=r"the reward transforms got an empty batch \(0,\)"):

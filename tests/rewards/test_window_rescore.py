@@ -1,6 +1,8 @@
 """WindowRescorer: S seeds' windows re-scored for r^sp (one vmapped forward, or seed by seed on
 a CPU) equal S calls of IntrinsicRewards.rescore_windows, each seed under its own target model."""
 
+import re
+
 import pytest
 import torch
 
@@ -145,12 +147,14 @@ def test_a_seed_without_contact_has_no_per_contact_mean_and_one_with_one_has_its
     assert set(metrics[2]) == {key}
 
 
-def test_a_vmapped_rescoring_counts_as_rescored_for_the_stale_surprise_guard():
-    """The group's vmapped scorer marks every seed's surprise rescored: their updates with the
-    rewards on then run (without it the guard stops the second: never rescored)."""
+@pytest.mark.parametrize("vmapped", [True, False], ids=["vmapped", "seed_by_seed"])
+def test_a_rescoring_counts_as_rescored_for_the_stale_surprise_guard(vmapped):
+    """The group's scorer (vmapped, or each seed's rescore_windows) marks every seed's surprise
+    rescored: their updates with the rewards on then run (without it the guard stops the
+    second: never rescored)."""
     grouped = [_rewards(s, model_batch_size=4) for s in SEEDS]
     batches = [_batch(r, s) for r, s in zip(grouped, SEEDS, strict=True)]
-    WindowRescorer(grouped, vmapped=True)(batches, 0.9)
+    WindowRescorer(grouped, vmapped=vmapped)(batches, 0.9)
     for rewards in grouped:
         rewards.extend(rewards.rescored[0](_trajectory(obs_dim=OBS, act_dim=ACT)))
         for _ in range(3):
@@ -159,7 +163,12 @@ def test_a_vmapped_rescoring_counts_as_rescored_for_the_stale_surprise_guard():
     unmarked = _rewards(0, model_batch_size=4)
     unmarked.extend(unmarked.rescored[0](_trajectory(obs_dim=OBS, act_dim=ACT)))
     unmarked.update()
-    with pytest.raises(RuntimeError, match="penalty surprise was never scored again"):
+    message = (
+        "rescore_surprise=True, but penalty surprise was never scored again at sampling: append "
+        "rewards.rescore_transform() to the replay buffer (or call rescore_windows() on n-step "
+        "batches), or set GentlenessConfig(rescore_surprise=False)"
+    )
+    with pytest.raises(RuntimeError, match=f"^{re.escape(message)}$"):
         unmarked.update()
 
 
