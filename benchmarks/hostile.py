@@ -271,6 +271,29 @@ def child_compile_int(work: Path) -> Outcome:
     return cli_outcome(work, reached, end, f"the run started with learner.compile={value!r}")
 
 
+def child_sweep_file_yes(work: Path) -> Outcome:
+    """``gentlerl sweep FILE --out OUT --dry-run``, the file setting ``learner.compile: {values:
+    [yes]}``: a YAML 1.1 boolean word in a sweep file (planned only, nothing trains)."""
+    import contextlib
+    import io
+
+    from gentlerl import cli
+
+    path = work / "sweep.yaml"
+    path.write_text("parameters: {learner.compile: {values: [yes]}}\n")
+    err, out = io.StringIO(), io.StringIO()
+    argv = ["sweep", str(path), "--out", str(work / "out"), "--dry-run"]
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+            code = cli.main(argv)
+    except SystemExit as exit_:
+        return refusal(exit_, clean=not (work / "out").exists())
+    text = err.getvalue().strip()
+    if code == 0 or not text:
+        return "silent accept", f"rc {code}: planned {last_line(out.getvalue())!r}"
+    return refusal(SystemExit(text), clean=not (work / "out").exists())
+
+
 def child_seeds_set_yes(work: Path) -> Outcome:
     """``gentlerl seeds 0 1 --set learner.compile=yes --out OUT``: a word where a boolean goes,
     on the command line of a group (its training replaced by a stand-in)."""
@@ -426,6 +449,7 @@ CHILDREN: dict[str, Callable[[Path], Outcome]] = {
     "seed-max": child_seed_max,
     "compile-int": child_compile_int,
     "seeds-set-yes": child_seeds_set_yes,
+    "sweep-file-yes": child_sweep_file_yes,
     "tolerance-1e300": child_tolerance,
     "multiplier-state-nan": lambda w: child_multiplier_state(w, "multiplier", math.nan),
     "multiplier-state-negative": lambda w: child_multiplier_state(w, "multiplier", -1.0),
@@ -667,6 +691,8 @@ TESTS = {
     "compile-int": "tests/apps/test_overrides.py::"
     "test_command_line_errors_are_one_line_naming_the_field_and_the_value",
     "seeds-set-yes": "tests/apps/test_seeds.py::test_a_refused_group_is_one_line_and_makes_no_folder",
+    "sweep-file-yes": "tests/apps/test_sweeps_hostile.py::"
+    "test_malformed_sweep_files_are_one_line_refusals",
     "group-rerun": "tests/training/test_seed_group.py::"
     "test_a_group_refuses_a_checkpoint_but_reruns_a_group_stopped_before_its_first",
 }
@@ -689,6 +715,7 @@ FINDINGS = {
     "learner-lr-inf": "8: an inf learning rate taken by Learner (beside the NaN)",
     "compile-int": "9: `learner.compile=1` on the command line started a run",
     "seeds-set-yes": "9: a word as a boolean in `gentlerl seeds --set` (found re-running 9)",
+    "sweep-file-yes": "9: a word as a boolean in a sweep file (found re-running 9)",
     "group-rerun": "10: a group stopped before its first checkpoint could not be re-run",
 }
 

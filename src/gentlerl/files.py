@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -88,7 +89,14 @@ def links_under(root: str | os.PathLike, limit: int = 100_000) -> list[Path]:
 
 
 class _NoAliasLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed."""
+    """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed and reads
+    only ``true`` / ``false`` as booleans (YAML 1.2's core schema): YAML 1.1's ``yes``, ``no``,
+    ``on``, ``off`` stay words, which a boolean setting then refuses, as the command line does."""
+
+    yaml_implicit_resolvers = {
+        first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:bool"]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
 
     def compose_node(self, parent: Any, index: Any) -> Any:
         if self.check_event(yaml.AliasEvent):
@@ -97,6 +105,11 @@ class _NoAliasLoader(yaml.SafeLoader):
                 None, None, f"YAML aliases are not accepted (*{event.anchor})", event.start_mark
             )
         return super().compose_node(parent, index)
+
+
+_NoAliasLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+)
 
 
 #: The largest YAML file gentlerl reads (its configs and sweep files are a few KB).

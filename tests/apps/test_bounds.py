@@ -34,6 +34,15 @@ def test_load_yaml_refuses_aliases_and_oversized_text():
         load_yaml("#" * (MAX_YAML_BYTES + 1))
 
 
+def test_load_yaml_reads_only_true_and_false_as_booleans():
+    text = "a: [true, False, TRUE]\nb: [yes, no, on, off, y, n, Yes, OFF]\nc: 'true'"
+    assert load_yaml(text) == {
+        "a": [True, False, True],
+        "b": ["yes", "no", "on", "off", "y", "n", "Yes", "OFF"],
+        "c": "true",
+    }
+
+
 def test_an_alias_bomb_sweep_is_refused_at_once(tmp_path):
     sweep = tmp_path / "bomb.yaml"
     sweep.write_text(ALIAS_SWEEP)

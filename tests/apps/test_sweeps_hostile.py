@@ -8,6 +8,7 @@ import re
 
 import pytest
 
+from gentlerl.apps.sweep_files import load_sweep
 from gentlerl.apps.sweeps import main as sweep
 from tests.helpers import files_under, sweep_file
 
@@ -72,6 +73,11 @@ def test_sweep_values_cannot_leave_out(tmp_path, value):
         ("parameters: {seed: {values: [[[1]]]}}\n", "nested lists"),
         ("parameters: {seed: {values: [{a: 1}]}}\n", "expected a number"),
         ("parameters: {seed: [\n", "not valid YAML"),
+        # YAML 1.1's boolean words are words, and a boolean field takes true or false only
+        ("parameters: {logging.progress: {values: [yes]}}\n", "logging.progress=yes must be"),
+        ("parameters: {learner.compile: {value: off}}\n", "learner.compile=off must be true"),
+        ("parameters: {learner.compile: {values: [true, 1]}}\n", "learner.compile=1 must be"),
+        ("parameters: {variant: {values: [on]}}\n", "variant='on' is not one of"),
     ],
 )
 def test_malformed_sweep_files_are_one_line_refusals(tmp_path, body, match):
@@ -158,6 +164,7 @@ def test_a_sweep_file_cannot_send_its_runs_to_a_ray_cluster(tmp_path, parameters
         ("seed={a: 1}", "expected a number, a name or a list"),
         ("learner.compile=yes", "learner.compile=yes must be true or false"),
         ("collector.overlap=on", "collector.overlap=on must be true or false"),
+        ("collector.overlap=1", "collector.overlap=1 must be true or false"),
     ],
 )
 def test_set_follows_the_sweep_files_rules(tmp_path, item, match):
@@ -180,3 +187,8 @@ def test_sweep_options_are_checked_before_anything_runs(tmp_path, args, message)
     with pytest.raises(SystemExit, match=re.escape(message)):
         sweep([good, "--out", str(tmp_path / "o"), "--dry-run", *args])
     assert not (tmp_path / "o").exists()
+
+
+def test_a_word_yaml_1_1_reads_as_a_boolean_stays_a_word_for_a_string_field(tmp_path):
+    path = sweep_file(tmp_path, "parameters: {logging.wandb_project: {values: [on, no]}}\n")
+    assert load_sweep(path) == {"logging.wandb_project": ["on", "no"]}

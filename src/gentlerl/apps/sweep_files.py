@@ -21,6 +21,7 @@ import yaml
 from gentlerl.files import load_yaml
 
 __all__ = [
+    "check_boolean",
     "check_cluster",
     "check_key",
     "check_value",
@@ -35,6 +36,8 @@ __all__ = [
 _SAFE_STRING = re.compile(r"[A-Za-z0-9_.:+-]+")
 #: Fields the runner sets itself for each grid point.
 _RUNNER_FIELDS = ("run_dir", "resume")
+#: The words YAML 1.1 reads as booleans (``load_yaml`` reads only ``true`` / ``false``).
+_YAML11_BOOLEANS = frozenset({"y", "n", "yes", "no", "on", "off"})
 #: The command-line flag of ``gentlerl sweep`` that lets a sweep set the Ray collector.
 ALLOW_RAY_FLAG = "--allow-ray-collector"
 
@@ -77,6 +80,17 @@ def check_value(key: str, value: Any, where: str) -> None:
             )
     elif not (value is None or isinstance(value, bool | int | float)):
         raise ValueError(f"{where}: {key}={value!r}: expected a number, a name or a list of them")
+
+
+def check_boolean(key: str, value: Any, where: str) -> None:
+    """Refuse a value of a boolean field that is not ``true`` or ``false``: ``load_yaml`` reads
+    YAML 1.1's ``yes`` / ``on`` ... as words, and a number is not a boolean. A field that also
+    takes a word (``collector.overlap``: ``auto``) refuses those words and numbers only."""
+    kind = sweepable_fields().get(key, "")
+    if "bool" not in kind.split(" | ") or isinstance(value, bool):
+        return
+    if kind == "bool" or isinstance(value, int | float) or str(value).lower() in _YAML11_BOOLEANS:
+        raise ValueError(f"{where}: {key}={value} must be true or false")
 
 
 def check_cluster(key: str, value: Any, where: str, allow_ray: bool = False) -> None:
@@ -125,6 +139,7 @@ def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]
             )
         for value in grid[name]:
             check_value(name, value, str(path))
+            check_boolean(str(name), value, str(path))
             check_cluster(str(name), value, str(path), allow_ray)
     if not grid:
         raise ValueError(f"{path}: no parameters")
@@ -134,8 +149,8 @@ def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]
 def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, Any]]:
     """``--set`` items as ``(key, value)``, each value read as YAML and held to a sweep file's
     rules: ``field=value`` for a config field (or ``+env.kwargs.NAME=value``, how a task keyword
-    is added), a plain value (no ``${...}`` interpolation), a boolean written ``true`` or
-    ``false`` (not YAML 1.1's ``yes`` / ``on`` ...), no Ray collector unless ``allow_ray``."""
+    is added), a plain value (no ``${...}`` interpolation), a boolean field ``true`` or
+    ``false`` (:func:`check_boolean`), no Ray collector unless ``allow_ray``."""
     parsed = []
     for item in items:
         key, sep, text = item.partition("=")
@@ -148,11 +163,8 @@ def parse_set(items: Sequence[str], allow_ray: bool = False) -> list[tuple[str, 
             value = load_yaml(text)
         except yaml.YAMLError:
             raise ValueError(f"{where}: the value is not a plain number, name or list") from None
-        if isinstance(value, bool) and text.strip().lower() not in ("true", "false"):
-            # YAML 1.1 reads yes / no / on / off as booleans; a command line, as gentlerl
-            # train's, takes only true / false
-            raise ValueError(f"{where}: {key}={text.strip()} must be true or false")
         check_value(key, value, where)
+        check_boolean(key, value, where)
         check_cluster(key, value, where, allow_ray)
         parsed.append((key, value))
     return parsed
