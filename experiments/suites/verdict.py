@@ -7,8 +7,8 @@ max impact (each run's final evaluation, as ``results.csv`` holds it), the ratio
 GentleBench's label (:func:`experiments.gentlebench.criteria.gentlebench_verdict`: keeps the
 return at >= 0.8x, gentler at <= 0.5x). A task *passes* when ``r+rf+rsp`` is "gentle and as
 good"; the goal is met when at least :data:`GOAL_TASKS` of the :data:`FOREIGN_TASKS` foreign
-tasks (every task but the hand's) pass, and undecided while the tasks not yet measured could
-still decide it. The output is framed by :data:`GENERATED` and :data:`END`, as ``gentlerl table``'s
+tasks (every task but the hand's, which the verdict leaves out) pass, and undecided while the
+tasks not yet measured could still decide it. The output is framed by :data:`GENERATED` and :data:`END`, as ``gentlerl table``'s
 tables are, so a committed verdict can be compared with what its CSV gives.
 """
 
@@ -33,7 +33,9 @@ END = "<!-- end of the generated verdict -->"
 METHOD = "r+rf+rsp"
 GOAL_TASKS = 2
 FOREIGN_TASKS = 3
-#: The hand's tasks: judged by success, not part of the goal.
+#: The hand's tasks: not part of the goal and left out of the verdict (its return test, with
+#: "below 20 says nothing", was written for the finger tasks' returns; the hand's success and
+#: impact are in the results table, ``gentlerl table RESULTS --tasks touch,fragile``).
 HAND_TASKS = ("touch", "fragile")
 
 
@@ -100,10 +102,10 @@ def verdict_markdown(rows: Sequence[Mapping[str, Any]], source: str) -> str:
         "| --- | --- | --- | --- | --- | --- | --- |",
     ]
     passed, judged = [], []
-    for task in dict.fromkeys(row["task"] for row in rows):
+    for task in dict.fromkeys(row["task"] for row in rows if row["task"] not in HAND_TASKS):
         table, label = task_lines(task, [row for row in rows if row["task"] == task])
         lines += table
-        if label is not None and task not in HAND_TASKS:
+        if label is not None:
             judged.append(task)
             passed += [task] if label == "gentle and as good" else []
     lines += [

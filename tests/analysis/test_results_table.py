@@ -69,3 +69,20 @@ def test_generated_tables_are_found_in_a_text_with_their_csv():
     text = f"# Results\n\nbefore\n\n{table}\nafter\n"
     assert generated_tables(text) == [("docs/a.csv", table)]
     assert generated_tables("no table here") == []
+
+
+def test_tasks_limit_the_table_to_those_and_its_first_line_says_so():
+    rows = [_row("touch", "r", 0, 1.0, 6.0, 1.0), _row("fragile", "r", 0, 0.0, 9.0, 0.0)]
+    rows.append(_row("finger-spin", "r", 0, 80.0, 490.0, None, frames=50000))
+    text = results_markdown(rows, "a.csv", tasks=["fragile", "touch"])
+    lines = text.splitlines()
+    assert lines[0] == GENERATED.format(source="a.csv --tasks fragile,touch")
+    # the CSV's order, not the option's; the other task left out
+    assert [ln for ln in lines if ln.startswith("**")] == [
+        "**touch**, 30000 frames",
+        "**fragile**, 30000 frames",
+    ]
+    assert generated_tables(f"x\n{text}y\n") == [("a.csv --tasks fragile,touch", text)]
+    with pytest.raises(ValueError, match=r"^a.csv: --tasks touch,spin: no rows of \['spin'\]; it "
+                       r"holds touch, fragile, finger-spin$"):  # fmt: skip
+        results_markdown(rows, "a.csv", tasks=["touch", "spin"])

@@ -1,6 +1,6 @@
 """The re-measure's verdict (experiments/suites/verdict.py): medians over seeds against ``r``,
-GentleBench's thresholds, the goal counted over foreign tasks only; and every committed verdict
-block is what its CSV gives."""
+GentleBench's thresholds, the goal counted over foreign tasks only (the hand's left out); and
+every committed verdict block is what its CSV gives."""
 
 from pathlib import Path
 
@@ -37,7 +37,8 @@ def test_a_task_passes_at_0_8x_the_return_and_0_5x_the_impact_by_medians():
     assert "| 0.86x | 0.42x | gentle and as good |" in lines["| spinr+rf+rsp (3)"]
     assert "110.0 / 12.0 N | 95.0 / 5.0 N" in lines["| spinr+rf+rsp (3)"]
     assert lines["| turnr+rf+rsp (3)"].endswith("| 0.79x | 0.50x | gentle but worse |")
-    # the hand's task is judged but not counted: 1 of the 2 foreign tasks, the third could decide
+    # the hand's task is left out: 1 of the 2 foreign tasks, the third could decide
+    assert not any(key.startswith("| touch") for key in lines)
     assert "**undecided** — 1 of the 2 foreign tasks measured pass (spin)." in text
     assert text.startswith(GENERATED.format(source="x.csv")) and text.endswith(END + "\n")
 

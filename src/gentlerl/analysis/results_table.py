@@ -25,8 +25,11 @@ END = "<!-- end of the generated table -->"
 
 def block_pattern(first: str, last: str) -> re.Pattern[str]:
     """A generated block in a markdown text, from its ``first`` line (a template whose
-    ``{source}`` is the CSV it names, the group ``source``) through its ``last`` line."""
-    head = re.escape(first).replace(re.escape("{source}"), r"(?P<source>[^`\s]+)")
+    ``{source}`` is the CSV it names, the group ``source``, and the tasks it was limited to,
+    ``--tasks a,b``, the group ``tasks``) through its ``last`` line."""
+    head = re.escape(first).replace(
+        re.escape("{source}"), r"(?P<source>[^`\s]+)(?: --tasks (?P<tasks>[^`\s]+))?"
+    )
     return re.compile(head + r".*?" + re.escape(last) + r"\n?", re.DOTALL)
 
 
@@ -99,12 +102,25 @@ def _task_table(task: str, rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
-def results_markdown(rows: Sequence[Mapping[str, Any]], source: str) -> str:
+def results_markdown(
+    rows: Sequence[Mapping[str, Any]], source: str, tasks: Sequence[str] | None = None
+) -> str:
     """The safe-RL table of a results file's ``rows`` (per task, in the order the CSV lists them;
     a CSV of several suites heads each task with its suite), framed by :data:`GENERATED` naming
-    ``source`` (the CSV as the command was given it) and :data:`END`."""
+    ``source`` (the CSV as the command was given it) and :data:`END`. ``tasks``: only these
+    tasks' rows (``gentlerl table CSV --tasks a,b``, as the first line then says); a task the
+    CSV does not hold is refused."""
     if not rows:
         raise ValueError(f"{source}: no rows to tabulate")
+    if tasks is not None:
+        missing = [t for t in tasks if t not in _ordered(rows, "task")]
+        if not tasks or missing:
+            raise ValueError(
+                f"{source}: --tasks {','.join(tasks)}: no rows of {missing or 'any task'}; it "
+                f"holds {', '.join(map(str, _ordered(rows, 'task')))}"
+            )
+        rows = [row for row in rows if row["task"] in tasks]
+        source = f"{source} --tasks {','.join(tasks)}"
     several = len(_ordered(rows, "suite")) > 1
     lines = [
         GENERATED.format(source=source),
@@ -122,6 +138,10 @@ def results_markdown(rows: Sequence[Mapping[str, Any]], source: str) -> str:
 
 
 def generated_tables(text: str) -> list[tuple[str, str]]:
-    """Every generated table in a markdown ``text``: the CSV it names and the table as written
-    (from :data:`GENERATED` through :data:`END`)."""
-    return [(m["source"], m[0]) for m in _BLOCK.finditer(text)]
+    """Every generated table in a markdown ``text``: the CSV it names (with `` --tasks a,b``
+    where the table was limited to those) and the table as written (from :data:`GENERATED`
+    through :data:`END`)."""
+    return [
+        (m["source"] + (f" --tasks {m['tasks']}" if m["tasks"] else ""), m[0])
+        for m in _BLOCK.finditer(text)
+    ]

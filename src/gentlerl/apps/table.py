@@ -2,6 +2,7 @@
 moved out of the library in 0.2.0.
 
     gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
+    gentlerl table runs/after_fix/results.csv --tasks touch,fragile
 
 A results file (``gentlerl suite run``'s ``OUT/results.csv``) gives, per task, each variant's
 ``return ± std | max impact ± std (N) | success ± std`` over its seeds
@@ -29,16 +30,26 @@ MOVED: dict[str, str] = {
 }
 
 
-def csv_table(results: str | Path, source: str | None = None) -> str:
+def csv_table(
+    results: str | Path, source: str | None = None, tasks: Sequence[str] | None = None
+) -> str:
     """The markdown table of the results file ``results``, its marker naming ``source`` (default:
-    the path as given)."""
+    the path as given); ``tasks``: only these tasks (``--tasks``)."""
     from gentlerl.analysis.results import read_results
     from gentlerl.analysis.results_table import results_markdown
 
     path = Path(results)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such results file (gentlerl suite run writes one)")
-    return results_markdown(read_results(path), str(results) if source is None else source)
+    rows = read_results(path)
+    return results_markdown(rows, str(results) if source is None else source, tasks)
+
+
+def command_table(arguments: str) -> str:
+    """The table ``gentlerl table ARGUMENTS`` prints, for the arguments a generated table's first
+    line names (``RESULTS.csv`` or ``RESULTS.csv --tasks a,b``)."""
+    results, _, tasks = arguments.partition(" --tasks ")
+    return csv_table(results, tasks=tasks.split(",") if tasks else None)
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> str:
@@ -52,6 +63,11 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> str
     )
     parser.add_argument(
         "runs", nargs="?", type=Path, help="with a grid's name: the grid's --out folder"
+    )
+    parser.add_argument(
+        "--tasks",
+        type=lambda text: text.split(","),
+        help="only these tasks, comma-separated (touch,fragile); the table's first line says so",
     )
     parser.add_argument(
         "--out", type=Path, help="write the table to this .md file (default: print)"
@@ -69,7 +85,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl table") -> str
         from gentlerl.apps.outputs import check_output_file
 
         check_output_file(args.out, (".md",))
-    text = csv_table(args.results)
+    text = csv_table(args.results, tasks=args.tasks)
     if args.out is None:
         print(text, end="")
     else:
