@@ -193,8 +193,8 @@ def test_the_after_fix_suite_plans_its_fifteen_cells():
 
 
 def test_export_writes_each_finished_hand_runs_actor_in_one_command(toy_suite, tmp_path, capsys):
-    """``--export DIR``: the shipped policies from the suite's runs (the toy suite trains
-    ``task=touch``), each the final actor of its run, its config's seed and variant."""
+    """``--export DIR``: the shipped policies from the suite's runs (the toy suite's task ``toy``
+    trains ``task=touch``), each the final actor of its run, under its cell's folder names."""
     from gentlerl.apps.suite import main
     from gentlerl.training.checkpoint import load_checkpoint
 
@@ -205,12 +205,32 @@ def test_export_writes_each_finished_hand_runs_actor_in_one_command(toy_suite, t
     assert main(["run", str(EXAMPLE), "--out", str(copy), "--export", str(policies)]) == 0
     written = sorted(p.relative_to(policies).as_posix() for p in policies.rglob("*.pt"))
     assert written == [
-        "touch/r+rf+rsp/seed0.pt", "touch/r+rf+rsp/seed1.pt", "touch/r/seed0.pt", "touch/r/seed1.pt",
+        "toy/r+rf+rsp/seed0.pt", "toy/r+rf+rsp/seed1.pt", "toy/r/seed0.pt", "toy/r/seed1.pt",
     ]  # fmt: skip
     for name in written:
         config = load_checkpoint(policies / name)["config"]
-        assert f"{config['variant']}/seed{config['seed']}.pt" == name.removeprefix("touch/")
+        assert config["task"] == "touch"
+        assert f"{config['variant']}/seed{config['seed']}.pt" == name.removeprefix("toy/")
     assert capsys.readouterr().out.splitlines()[-1] == f"4 policies under {policies}"
+
+
+def test_export_names_a_policy_by_its_cells_folder_and_skips_an_unfinished_run(toy_suite, tmp_path):
+    """A steered cell's runs are ``r+rf`` in their configs and ``constrained`` in the suite: the
+    policy takes the cell's name; a run without ``DONE`` is not exported."""
+    from gentlerl.apps.export import export_suite_runs
+
+    out, _, _ = toy_suite
+    copy = tmp_path / "toy"
+    shutil.copytree(out / "toy" / "r", copy / "touch" / "constrained")
+    shutil.copytree(out / "toy" / "r", copy / "touch" / "stopped")
+    (copy / "touch" / "stopped" / "seed0" / "DONE").unlink()
+    written = export_suite_runs(copy, tmp_path / "p")
+    assert sorted(p.relative_to(tmp_path / "p").as_posix() for p in written) == [
+        "touch/constrained/seed0.pt", "touch/constrained/seed1.pt", "touch/stopped/seed1.pt",
+    ]  # fmt: skip
+    assert written[tmp_path / "p" / "touch" / "stopped" / "seed1.pt"] == (
+        copy / "touch" / "stopped" / "seed1" / "checkpoint.pt"
+    )
 
 
 def test_export_and_dry_run_together_are_refused_in_one_line(tmp_path, capsys):

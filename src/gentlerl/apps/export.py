@@ -72,10 +72,34 @@ def export_runs(
     return written
 
 
+def export_suite_runs(
+    out: str | os.PathLike, to: str | os.PathLike, tasks: Sequence[str] = ("touch", "fragile")
+) -> dict[Path, Path]:
+    """The final actor of every finished (``DONE``) run of ``tasks`` in a suite's folder ``out``,
+    to ``to/<task>/<cell's variant>/seed<k>.pt``: the folder names of the suite's cells (a
+    steered cell's ``constrained``, not its config's ``r+rf``), every lambda'_2 as the suite
+    declared it; returns ``{policy file: checkpoint}``."""
+    from gentlerl.config.layout import RunLayout
+    from gentlerl.training.checkpoint import load_checkpoint, policy_file_state, save_checkpoint
+
+    out, written = Path(out), {}
+    for ckpt in find_checkpoints([out]):
+        if not RunLayout(ckpt.parent).done.exists():
+            continue
+        policy = policy_file_state(load_checkpoint(ckpt), ckpt)
+        if run_task(policy["config"]) not in tasks:  # external envs: skipped
+            continue
+        run = ckpt.parent.relative_to(out)
+        dest = Path(to) / run.parent / f"{run.name}.pt"
+        save_checkpoint(dest, policy)
+        written[dest] = ckpt
+    return written
+
+
 def export_and_list(out: str | os.PathLike, to: str | os.PathLike) -> None:
-    """The final actor of every finished hand run under ``out`` (``gentlerl suite run --export``),
-    each file printed with the checkpoint it came from."""
-    written = export_runs([out], to)
+    """The final actor of every finished hand run of a suite's folder ``out`` (``gentlerl suite
+    run --export``, :func:`export_suite_runs`), each file printed with its checkpoint."""
+    written = export_suite_runs(out, to)
     for dest, ckpt in sorted(written.items()):
         print(f"{dest} <- {ckpt}")
     print(

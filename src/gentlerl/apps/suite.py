@@ -3,7 +3,7 @@
     gentlerl suite run experiments/suites/after_fix.yaml --out runs/after_fix
     gentlerl table runs/after_fix/results.csv --out runs/after_fix/table.md
     gentlerl suite run experiments/suites/after_fix.yaml --out runs/after_fix \
-        --cells 'touch/*' --cells 'fragile/*' --export docs/policies
+        --cells 'touch/*' --cells 'fragile/*' --export docs/policies/after_fix
 
 A suite file (:mod:`gentlerl.apps.suite_files`) declares tasks x variants x seeds at a budget.
 Every cell's configs are checked before any folder is made (each refusal one line, all of them
@@ -16,7 +16,7 @@ checkpoint is refused until its folder is removed. After each cell, ``DIR/result
 rewritten whole (:mod:`gentlerl.analysis.results`: one row per run, its final evaluation, wall
 clock, the code's version and commit, the date), and a line says how the cell did. ``--export
 DIR`` then writes every finished hand run's final actor to ``DIR/<task>/<variant>/seed<k>.pt``
-(:func:`gentlerl.apps.export.export_runs`): the shipped policies from one command.
+(:func:`gentlerl.apps.export.export_suite_runs`): the shipped policies from one command.
 """
 
 from __future__ import annotations
