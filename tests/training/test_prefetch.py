@@ -1,5 +1,7 @@
 """Collection overlapped with learning: one batch of policy lag, own noise stream, same results."""
 
+import time
+
 import pytest
 import torch
 from tensordict.nn import TensorDictModule
@@ -79,3 +81,27 @@ def test_overlapped_runs_repeat_exactly(tmp_path):
     for name in ("train/loss_value", "train/model_penalty", "eval/success_rate"):
         first = read_scalar(tmp_path / "first", name)
         assert first and read_scalar(tmp_path / "again", name) == first, name
+
+
+class _SlowToyEnv(ToyHandEnv):
+    """The toy env, each step ``delay`` s longer: the same data, collected on another timing."""
+
+    def __init__(self, delay: float) -> None:
+        super().__init__(time_limit=50)
+        self.delay = delay
+
+    def _step(self, tensordict):
+        time.sleep(self.delay)
+        return super()._step(tensordict)
+
+
+def test_an_overlapped_run_does_not_depend_on_how_long_collection_takes(tmp_path):
+    """The random frames' actions come from the global generator, which the learner's side
+    (replay and model batches) draws from too: collected beside it, their order would follow the
+    threads' timing. A slow env must give the run of a fast one."""
+    for name, delay in (("fast", 0.0), ("slow", 0.002)):
+        cfg = tiny_config(tmp_path / name, total_frames=400, overlap=True)
+        train(cfg, lambda delay=delay: _SlowToyEnv(delay))
+    for name in ("train/loss_value", "train/model_penalty"):
+        fast = read_scalar(tmp_path / "fast", name)
+        assert fast and read_scalar(tmp_path / "slow", name) == fast, name
