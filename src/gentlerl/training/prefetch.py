@@ -9,7 +9,8 @@ one process. The collector's policy is a *copy* of the actor, refreshed from the
 only between batches, while the thread is idle: batch ``k + 1`` is collected with the weights the
 learner had after training on batch ``k - 1`` (one batch of policy lag, whatever the timing), and
 the exploration noise draws from its own seeded generator, so the thread and the learner never
-share a random stream. Same seed, same run. Batches come out in order, time-contiguous per env
+share a random stream; the random frames (TorchRL's ``init_random_frames``, drawn from the
+global generator) are collected one batch at a time, not beside the caller. Same seed, same run. Batches come out in order, time-contiguous per env
 row, as the n-step replay needs.
 """
 
@@ -97,15 +98,24 @@ class PrefetchCollector:
 
     def __iter__(self) -> Iterator[TensorDictBase]:
         batches = iter(self.collector)
-        pending = self._pool.submit(next, batches, None)
+        random_frames = int(getattr(self.collector, "init_random_frames", 0) or 0)
+        frames, pending = 0, self._pool.submit(next, batches, None)
         while True:
             batch = pending.result()
             if batch is None:
                 return
+            frames += batch.numel()
             # The thread is idle here: the weights of the learner's last finished round.
             self.update_policy_weights_()
-            pending = self._pool.submit(next, batches, None)
-            yield batch
+            if frames < random_frames:
+                # The next batch's random actions draw from the global generator, which the
+                # caller's side uses too (an evaluation reseeds it inside a fork): collected
+                # after this batch is used, not beside it, its draws keep their order.
+                yield batch
+                pending = self._pool.submit(next, batches, None)
+            else:
+                pending = self._pool.submit(next, batches, None)
+                yield batch
 
     def shutdown(self) -> None:
         self._pool.shutdown(wait=True)
