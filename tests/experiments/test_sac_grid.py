@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from experiments.sac_grid.criteria import sac_verdict
-from experiments.sac_grid.table import sac_table
+from experiments.sac_grid.table import END, GENERATED, sac_markdown, sac_table
+from gentlerl.analysis.results_table import block_pattern
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -90,4 +91,27 @@ def test_the_script_prints_the_table_run_from_anywhere(tmp_path):
         capture_output=True, text=True, timeout=120, cwd=tmp_path,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert done.stdout.rstrip().endswith("touch: gentleness transfers")
+    assert done.stdout.startswith(GENERATED.format(source=tmp_path.as_posix()) + "\n")
+    assert done.stdout.endswith("touch: gentleness transfers\n\n" + END + "\n")
+
+
+_BLOCK = block_pattern(GENERATED, END)
+BLOCKS = [
+    (path, m["source"], m[0])
+    for path in sorted([*ROOT.glob("*.md"), *ROOT.glob("docs/**/*.md")])
+    for m in _BLOCK.finditer(path.read_text())
+]
+
+
+@pytest.mark.parametrize(
+    ("path", "source", "block"),
+    BLOCKS
+    or [pytest.param(None, None, None, marks=pytest.mark.skip(reason="no SAC table yet"))],
+)
+def test_each_committed_sac_table_is_what_its_runs_give(path, source, block, monkeypatch):
+    """The committed copies of the runs' final evaluations regenerate the block word for word."""
+    monkeypatch.chdir(ROOT)  # the folder as the command named it, from the repository's root
+    assert Path(source).is_dir(), f"{path}: its SAC table names {source}, not committed"
+    assert sac_markdown(Path(source)) == block, (
+        f"{path}: rerun python experiments/sac_grid/table.py {source}"
+    )
