@@ -105,8 +105,7 @@ BLOCKS = [
 
 @pytest.mark.parametrize(
     ("path", "source", "block"),
-    BLOCKS
-    or [pytest.param(None, None, None, marks=pytest.mark.skip(reason="no SAC table yet"))],
+    BLOCKS or [pytest.param(None, None, None, marks=pytest.mark.skip(reason="no SAC table yet"))],
 )
 def test_each_committed_sac_table_is_what_its_runs_give(path, source, block, monkeypatch):
     """The committed copies of the runs' final evaluations regenerate the block word for word."""
