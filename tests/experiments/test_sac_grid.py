@@ -114,3 +114,26 @@ def test_each_committed_sac_table_is_what_its_runs_give(path, source, block, mon
     assert sac_markdown(Path(source)) == block, (
         f"{path}: rerun python experiments/sac_grid/table.py {source}"
     )
+
+
+def test_the_readmes_sac_numbers_are_what_the_committed_runs_give():
+    """The README's SAC sentence: touch's mean success and median successful max impact of
+    ``r+rf+rsp`` and of plain SAC (``r``), as the committed final evaluations give them."""
+    import re
+
+    from experiments.sac_grid.table import load_sac_grid, sac_row
+
+    runs = load_sac_grid(ROOT / "experiments" / "sac_grid" / "after_fix")
+    rsp, r = (sac_row(runs["touch", v]) for v in ("r+rf+rsp", "r"))
+    text = " ".join((ROOT / "README.md").read_text().split())
+    stated = re.search(
+        r"touch ([\d.]+) at ([\d.]+) N against plain SAC's ([\d.]+) at ([\d.]+) N", text
+    )
+    assert stated, "the README's SAC sentence is gone: update this test with it"
+    measured = (
+        rsp["mean_success"],
+        rsp["successful_impact"],
+        r["mean_success"],
+        r["successful_impact"],
+    )
+    assert stated.groups() == tuple(f"{x:.2f}" for x in measured)
