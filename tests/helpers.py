@@ -1,6 +1,7 @@
 """Helpers shared by test files of several packages: the tiny training config, the toy env's
 factory, a run's logged scalar, a variant's reward transforms, a pressing rollout, and the hostile
-input tests' sweep files, sensor map, policy files and minimal runs."""
+input tests' sweep files, sensor map, policy files and minimal runs, and the generated blocks
+committed in the README and docs."""
 
 import csv
 from pathlib import Path
@@ -9,6 +10,7 @@ import numpy as np
 import torch
 
 from gentlerl import keys
+from gentlerl.analysis.results_table import block_pattern
 from gentlerl.config import GentlenessConfig
 from gentlerl.config.layout import RunLayout
 from gentlerl.rewards import IntrinsicRewards
@@ -135,3 +137,23 @@ def minimal_run(root: Path, seed: int = 0, scalars: str | None = "1000,0.5\n2000
         (run / "logs" / "scalars" / "eval").mkdir(parents=True)
         (run / "logs" / "scalars" / "eval" / "success_rate.csv").write_text(scalars)
     return run
+
+
+#: The repository's root.
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def committed_blocks(first: str, last: str) -> list:
+    """Every block from a ``first`` line (a template naming its ``{source}``) through its
+    ``last`` line in the README and docs: ``(path, source, block)``, or one skipped parameter
+    when none is committed yet (for ``pytest.mark.parametrize``)."""
+    import pytest
+
+    pattern = block_pattern(first, last)
+    found = [
+        (path, m["source"], m[0])
+        for path in sorted([*ROOT.glob("*.md"), *ROOT.glob("docs/**/*.md")])
+        for m in pattern.finditer(path.read_text())
+    ]
+    skip = pytest.mark.skip(reason="no such block committed yet")
+    return found or [pytest.param(None, None, None, marks=skip)]

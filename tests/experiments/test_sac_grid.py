@@ -11,7 +11,7 @@ import pytest
 
 from experiments.sac_grid.criteria import sac_verdict
 from experiments.sac_grid.table import END, GENERATED, sac_markdown, sac_table
-from gentlerl.analysis.results_table import block_pattern
+from tests.helpers import committed_blocks
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -95,17 +95,9 @@ def test_the_script_prints_the_table_run_from_anywhere(tmp_path):
     assert done.stdout.endswith("touch: gentleness transfers\n\n" + END + "\n")
 
 
-_BLOCK = block_pattern(GENERATED, END)
-BLOCKS = [
-    (path, m["source"], m[0])
-    for path in sorted([*ROOT.glob("*.md"), *ROOT.glob("docs/**/*.md")])
-    for m in _BLOCK.finditer(path.read_text())
-]
-
-
 @pytest.mark.parametrize(
     ("path", "source", "block"),
-    BLOCKS or [pytest.param(None, None, None, marks=pytest.mark.skip(reason="no SAC table yet"))],
+    committed_blocks(GENERATED, END),
 )
 def test_each_committed_sac_table_is_what_its_runs_give(path, source, block, monkeypatch):
     """The committed copies of the runs' final evaluations regenerate the block word for word."""

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from experiments.suites.verdict import END, GENERATED, verdict_markdown
-from gentlerl.analysis.results_table import block_pattern
+from tests.helpers import committed_blocks
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -62,18 +62,9 @@ def test_r_below_20_says_nothing_about_the_return_at_its_budget():
     assert "| not judged: r does not learn at 50k; gentler |" in verdict_markdown(rows, "x.csv")
 
 
-_BLOCK = block_pattern(GENERATED, END)
-BLOCKS = [
-    (path, m["source"], m[0])
-    for path in sorted([*ROOT.glob("*.md"), *ROOT.glob("docs/**/*.md")])
-    for m in _BLOCK.finditer(path.read_text())
-]
-
-
 @pytest.mark.parametrize(
     ("path", "source", "block"),
-    BLOCKS
-    or [pytest.param(None, None, None, marks=pytest.mark.skip(reason="no verdict committed yet"))],
+    committed_blocks(GENERATED, END),
 )
 def test_each_committed_verdict_is_what_its_csv_gives(path, source, block, monkeypatch):
     from gentlerl.analysis.results import read_results
