@@ -9,8 +9,8 @@ suite harness (``gentlerl suite run``) does not run. Its runs keep the final eva
 medians (``final_eval.json``); a results row (:data:`gentlerl.analysis.results.RESULT_COLUMNS`)
 holds the episodes' means. So each run's final actor (``actor.pt``) plays again the held-out
 episodes its ``final_eval.json`` summarises (the same count, the same seed: the same episodes),
-and the replay is refused when its success rate or median max impact differs from the recorded
-one. A row's ``wall_s`` is empty (the recipe logs no training clock), ``grouped`` 0, its date the
+and the replay is refused when any of :data:`CHECKED` (success and broken rates, median max
+impact) differs from the recorded one. A row's ``wall_s`` is empty (the recipe logs no training clock), ``grouped`` 0, its date the
 day ``final_eval.json`` was written, its ``version`` / ``commit`` the code converting it.
 """
 
