@@ -34,6 +34,7 @@ PENALTY_SURPRISE = "penalty_surprise"  # [1] r^{sp}_t
 ICM_REWARD = "icm_reward"  # [1] ICM baseline reward
 FORCE_PENALTY = "force_penalty"  # [1] r^F_t, total fingertip force penalty
 TORQUE_PENALTY = "torque_penalty"  # [1] r^tau_t, actuator effort penalty
+EXCESS_PENALTY = "excess_penalty"  # [1] -c_t, Method IV's cost: impact above the tolerance
 TASK_REWARD = "task_reward"  # [1] the env's own reward, kept by SumRewards when it writes "reward"
 
 # The dynamics model's three predicted feature groups (paper: one ensemble per group).

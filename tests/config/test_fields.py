@@ -134,6 +134,8 @@ VALUE_LIMITS = {
     "gentleness.dynamics_surprise_scale": 1e6, "gentleness.icm_eta": 1e6,
     "gentleness.multiplier_gains": 1e3, "gentleness.multiplier_period": 10**10,
     "gentleness.multiplier_integral_max": 1e6, "gentleness.multiplier_base": 1e6,
+    "gentleness.cost_limit": 10**10, "gentleness.cost_gains": 1e3,
+    "gentleness.cost_warmup_frames": 10**10, "gentleness.cost_multiplier_max": 1e6,
 }  # fmt: skip
 
 
@@ -150,6 +152,11 @@ def test_the_declared_ranges_are_the_ones_validate_checked_before():
         "gentleness.multiplier_base",
         "gentleness.multiplier_episodes",
         "seed",  # [0, 2**31 - 1]: checked by a rule before (seed < 2**32)
+        # Method IV's Lagrangian, declared with their fields
+        "gentleness.cost_limit",
+        "gentleness.cost_gains",
+        "gentleness.cost_warmup_frames",
+        "gentleness.cost_multiplier_max",
     }
     low = {
         n: (b.low, b.low_open)

@@ -84,6 +84,7 @@ def test_learned_components_name_their_model():
         keys.ICM_REWARD: "icm",
         keys.FORCE_PENALTY: None,  # the wear penalties have a transform but no model
         keys.TORQUE_PENALTY: None,
+        keys.EXCESS_PENALTY: None,  # Method IV's cost: a transform, no model
     }
 
 

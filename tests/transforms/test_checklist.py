@@ -26,6 +26,7 @@ from gentlerl import keys
 from gentlerl.rewards import RescoreRewards, SumRewards
 from gentlerl.transforms import (
     DynamicsSurprise,
+    ExcessPenalty,
     ForcePenalty,
     ICMReward,
     ImpactPenalty,
@@ -76,6 +77,9 @@ class Subject:
 SUBJECTS = {
     "ImpactPenalty": Subject(lambda seed, gate: ImpactPenalty(), keys.PENALTY),
     "ForcePenalty": Subject(lambda seed, gate: ForcePenalty(), keys.FORCE_PENALTY),
+    "ExcessPenalty": Subject(  # reads the impact ImpactPenalty writes; the press exceeds 0.01 N
+        lambda seed, gate: ExcessPenalty(0.01), keys.EXCESS_PENALTY, _penalty_env
+    ),
     "TorquePenalty": Subject(lambda seed, gate: TorquePenalty(), keys.TORQUE_PENALTY),
     "DynamicsSurprise": Subject(
         functools.partial(_model_transform, "r+rf+rs", DynamicsSurprise), keys.DYNAMICS_SURPRISE

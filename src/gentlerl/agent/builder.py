@@ -34,9 +34,12 @@ from gentlerl.rewards.intrinsic import IntrinsicRewards
 from gentlerl.rewards.specs import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.variants import (
     critic_supports,
+    derived_support,
+    derives_support,
     discounted_horizon,
     intrinsic_keys,
     reward_keys,
+    task_reward_bounds,
 )
 
 
@@ -79,9 +82,14 @@ class AgentBuilder:
         self.feature_shapes = env_feature_shapes(env)
         self.reward_keys = reward_keys(cfg.variant)
         self.intrinsic_keys = intrinsic_keys(self.reward_keys)
-        self.supports = critic_supports(
-            self.reward_keys, cfg.network, discounted_horizon(cfg.learner.gamma, self.horizon)
+        horizon = discounted_horizon(cfg.learner.gamma, self.horizon)
+        #: The task head's derived ``(v_min, v_max)``, or ``None``: ``network.v_min/v_max``.
+        self.task_support = (
+            derived_support(task_reward_bounds(cfg.env), horizon)
+            if derives_support(cfg.env, cfg.network)
+            else None
         )
+        self.supports = critic_supports(self.reward_keys, cfg.network, horizon, self.task_support)
         #: The variant's reward transforms and their models (on ``learner.device``, launched as
         #: the learner's update is), checked against ``env``: it must write what they read.
         self.rewards = IntrinsicRewards(
@@ -117,11 +125,12 @@ class AgentBuilder:
             reward_keys=self.reward_keys,
             non_episodic_keys=[] if learner.episodic_intrinsic else self.intrinsic_keys,
             policy_noise=learner.policy_noise,
+            normalize_values=learner.normalize_values,
         )
         loss.make_value_estimator(gamma=learner.gamma)
         loss.set_keys(terminated=keys.NSTEP_TERMINATED)
-        if self.rewards.multiplier is not None:  # w_0 until the first PID step
-            loss.set_head_weight(keys.PENALTY, self.rewards.multiplier.weight)
+        for key, weight in self.rewards.head_weights().items():  # until the first PID step
+            loss.set_head_weight(key, weight)
         return Learner(
             loss.to(learner.device),
             lr_actor=learner.lr_actor,

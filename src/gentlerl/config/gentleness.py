@@ -17,9 +17,10 @@ from gentlerl.config.limits import (
     MAX_WIDTH,
 )
 
-#: gentleness.multiplier: the penalty head's weight fixed at 1 (the paper), or steered by a PID
-#: Lagrange multiplier toward the tolerance.
-MULTIPLIERS = ("none", "pid")
+#: gentleness.multiplier: the penalty head's weight fixed at 1 (the paper), steered by a PID
+#: Lagrange multiplier toward the tolerance (Method III), or Method IV's Lagrangian: the episodes'
+#: cost above the tolerance held under ``cost_limit`` (:class:`gentlerl.rewards.CostLagrangian`).
+MULTIPLIERS = ("none", "pid", "lagrangian")
 
 
 @dataclass
@@ -130,4 +131,28 @@ class GentlenessConfig:
         "noise-free episodes of the current actor run at each PID step, whose max impacts are "
         "the cost (the deployed policy; needs multiplier_period; 0: the collection episodes)",
         bounds=f"[0, {MAX_HANDS}]",
+    )
+    # Method IV: the constrained problem as safe RL writes it (gentlerl.rewards.lagrangian).
+    cost_limit: float = setting(
+        25.0,
+        "multiplier=lagrangian: the episodes' mean cost allowed, in steps of violation (a step's "
+        "cost is its impact above the tolerance in tolerances, capped at 1; Safety Gym: 25 per "
+        "1000 steps)",
+        bounds=f"[0, {MAX_FRAMES}]",
+    )
+    cost_gains: tuple[float, float, float] = setting(
+        (0.1, 0.01, 0.01),
+        "multiplier=lagrangian: PID gains [K_P, K_I, K_D] on the mean episode cost minus the "
+        "limit (OmniSafe's PID Lagrangian defaults)",
+        bounds=f"[0, {MAX_GAIN}]",
+    )
+    cost_warmup_frames: int = setting(
+        0,
+        "multiplier=lagrangian: env steps before the multiplier moves (the critics learn first)",
+        bounds=f"[0, {MAX_FRAMES}]",
+    )
+    cost_multiplier_max: float = setting(
+        100.0,
+        "multiplier=lagrangian: cap of the multiplier's PID integral (OmniSafe's penalty_max)",
+        bounds=f"[0, {MAX_WEIGHT}]",
     )

@@ -50,6 +50,11 @@ class EnvConfig:
     observation_keys: tuple[str, ...] | None = setting(
         None, "external env: entries concatenated into observation (null: all but pixels)"
     )
+    reward_bounds: tuple[float, float] | None = setting(
+        None,
+        "per-step [low, high] of the task reward, from which network.derive_support sizes the "
+        "task head (null: [0, 1] for dm_control, whose suite rewards lie in the unit interval)",
+    )
     # The paper's lambda is in the newtons of the hand's fingertips; finger-spin's spinning
     # contacts reach 200-1,600 N, so its penalty is ~100x the hand's (measured).
     force_scale: float = setting(
@@ -173,6 +178,11 @@ class LearnerConfig:
     policy_noise: float = setting(
         0.0, "TD3 target policy smoothing std (0: D4PG)", bounds=">= 0", resumable=True
     )
+    normalize_values: bool = setting(
+        False,
+        "the actor sums each critic head's value divided by its batch's mean magnitude, so no "
+        "component's units tip the trade-off (Method IV)",
+    )
     episodic_intrinsic: bool = setting(
         False, "cut the curiosity heads' bootstrap at termination too", ablation=True
     )
@@ -201,6 +211,11 @@ class NetworkConfig:
     )
     num_atoms: int = setting(
         101, "atoms of each critic head's categorical support", bounds="[1, 1001]"
+    )
+    derive_support: bool | None = setting(
+        None,
+        "size the task head's support from env.reward_bounds, learner.gamma and the episode "
+        "length, with 10 % headroom (null: derived for an external env, v_min/v_max for the hand)",
     )
     v_min: float = setting(-10.0, "bottom of every head's support")
     v_max: float = setting(10.0, "top of every head's support")

@@ -88,27 +88,38 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
             f"gentleness.multiplier={gentleness.multiplier} steers toward the tolerance: set "
             "gentleness.tolerance (the impact one step may deal, N)"
         )
-    if gentleness.multiplier == "none":  # each set away from its default, which is unused
-        default = type(gentleness)()
-        problems += [
-            f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier=pid only"
-            for name in (
-                "multiplier_period",
-                "multiplier_integral_max",
-                "multiplier_base",
-                "multiplier_episodes",
-            )
-            if getattr(gentleness, name) != getattr(default, name)
-        ]
-    elif gentleness.multiplier_episodes and gentleness.multiplier_period is None:
+    default = type(gentleness)()
+    unused = {  # each set away from its default under another multiplier, where it is unused
+        "pid": (
+            "multiplier_period",
+            "multiplier_integral_max",
+            "multiplier_base",
+            "multiplier_episodes",
+        ),
+        "lagrangian": ("cost_limit", "cost_gains", "cost_warmup_frames", "cost_multiplier_max"),
+    }
+    problems += [
+        f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier={kind} "
+        "only"
+        for kind, names in unused.items()
+        if gentleness.multiplier != kind
+        for name in names
+        if getattr(gentleness, name) != getattr(default, name)
+    ]
+    if (
+        gentleness.multiplier == "pid"
+        and gentleness.multiplier_episodes
+        and gentleness.multiplier_period is None
+    ):
         problems.append(
             f"gentleness.multiplier_episodes={gentleness.multiplier_episodes} runs at each PID "
             "step: set gentleness.multiplier_period (env steps between them)"
         )
-    if len(gentleness.multiplier_gains) != 3:
-        problems.append(
-            f"gentleness.multiplier_gains={gentleness.multiplier_gains} must be [K_P, K_I, K_D]"
-        )
+    problems += [
+        f"gentleness.{name}={getattr(gentleness, name)} must be [K_P, K_I, K_D]"
+        for name in ("multiplier_gains", "cost_gains")
+        if len(getattr(gentleness, name)) != 3
+    ]
     return problems
 
 

@@ -141,3 +141,53 @@ def pid_lagrangian(
     integral = min(integral_max, max(0.0, integral + ki * error))
     multiplier = max(0.0, kp * error + integral + kd * max(0.0, cost - previous_cost))
     return multiplier, integral
+
+
+def excess_cost(impact: torch.Tensor, tolerance: float) -> torch.Tensor:
+    r"""Method IV's per-step cost: the impact above the tolerance, in tolerances, capped at 1.
+
+    .. math:: c_t = \min\Bigl(1,\; \sum_i \frac{\max(0,\, m^i_t - T)}{T}\Bigr)
+
+    A hinge on the impact of eq. 1 (FORGE's :math:`\mathrm{relu}(F - F_{th})`, Noseworthy et al.
+    2024) read in units of the tolerance :math:`T`, so a force unit that is 10x larger, with
+    :math:`T` stated in it, gives the same cost. Capped at 1, the per-step cost of Safety Gym's
+    indicator costs (Ray et al. 2019): 0 at or below :math:`T`, 1 at :math:`2T` and beyond, so an
+    episode's cost :math:`J = \sum_t c_t` counts steps of violation and is bounded by the horizon
+    (its critic's support follows from it). ``impact`` ``[..., n_sites]``; returns ``[...]``.
+    """
+    _check_tolerance(tolerance)
+    excess = (impact - tolerance).clamp_min(0.0).sum(-1) / tolerance
+    return excess.clamp_max(1.0)
+
+
+def lagrangian_weights(multiplier: float) -> tuple[float, float]:
+    r"""The actor's weights on the reward side and on the cost side at Lagrange multiplier
+    :math:`\lambda \ge 0`, normalised by :math:`1 + \lambda` (OmniSafe's DDPG-Lag ``_loss_pi``):
+
+    .. math:: \max_\pi \frac{Q_r - \lambda Q_c}{1 + \lambda}
+       \;\Rightarrow\; w_r = \frac{1}{1 + \lambda}, \quad w_c = \frac{\lambda}{1 + \lambda}
+
+    (:math:`Q_c` is learned as a penalty :math:`-c`, so both weights are >= 0). The objective's
+    scale stays within that of its heads however large :math:`\lambda` grows: a multiplier that
+    winds up shifts the trade-off toward the cost, it does not blow up the actor's gradient.
+    """
+    multiplier = finite("multiplier", multiplier)
+    if multiplier < 0:
+        raise ValueError(f"multiplier must be >= 0, got {multiplier}")
+    return 1.0 / (1.0 + multiplier), multiplier / (1.0 + multiplier)
+
+
+def normalized_values(q: torch.Tensor, span: torch.Tensor, floor: float = 1e-2) -> torch.Tensor:
+    r"""Each head's expected return divided by its batch's mean magnitude (no gradient through it):
+
+    .. math:: \hat Q_k = \frac{Q_k}{\max\bigl(\mathrm{mean}_B |Q_k|,\; \epsilon\,(v^k_{\max} - v^k_{\min})\bigr)}
+
+    the normalisation of TD3+BC (Fujimoto and Gu 2021, :math:`\lambda = \alpha / \mathrm{mean}|Q|`)
+    applied per head. Multiplying a component's rewards, and with them its support, by any
+    factor leaves :math:`\hat Q_k` unchanged, so no choice of units tips the sum of the heads;
+    the floor (:math:`\epsilon` of the head's support ``span``) keeps a head whose values are
+    all near 0 (a cost never paid) from being divided by nothing. ``q`` ``[..., B, K]``,
+    ``span`` ``[K]`` (or broadcastable); returns ``[..., B, K]``.
+    """
+    scale = q.detach().abs().mean(-2, keepdim=True)
+    return q / torch.maximum(scale, floor * span)

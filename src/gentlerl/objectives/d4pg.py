@@ -18,6 +18,7 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators
 
 from gentlerl import keys
+from gentlerl.functional import normalized_values
 from gentlerl.objectives.value import CategoricalTD0
 
 
@@ -34,8 +35,10 @@ class MultiHeadD4PGLoss(LossModule):
         \qquad
         \mathcal{L}_{actor} = -\mathbb{E}\left[ \sum_k w_k\, \mathbb{E}[Z^k(s, \pi(s))] \right],
 
-    :math:`w_k` = :attr:`head_weights` (1: the paper; :meth:`set_head_weight`). The critic owns the
-    supports: it writes each head's ``atoms`` next to its logits (:func:`~gentlerl.models.make_critic`).
+    :math:`w_k` = :attr:`head_weights` (1: the paper; :meth:`set_head_weight`); with
+    ``normalize_values`` each head's :math:`\mathbb{E}[Z^k]` is divided by its batch mean
+    magnitude. The critic owns the supports: it writes each head's ``atoms`` next to its logits
+    (:func:`~gentlerl.models.make_critic`).
     Discounting is the value estimator's (:meth:`make_value_estimator`, TD(0) on n-step data), as
     in TorchRL. Heads in ``non_episodic_keys`` bootstrap through ``terminated``, as RND treats its
     intrinsic return (Burda et al. 2019); the paper does not say, and by default all are episodic.
@@ -59,6 +62,10 @@ class MultiHeadD4PGLoss(LossModule):
         noise_clip: bound of that noise (the noisy action is clipped to [-1, 1]).
         delay_actor, delay_value: keep target copies (TorchRL's ``HardUpdate`` / ``SoftUpdate``).
         use_prioritized_weights: weight samples by ``priority_weight`` when present ("auto").
+        normalize_values: the actor sums :math:`w_k \hat Q_k`, each head divided by its batch's
+            mean magnitude (:func:`~gentlerl.functional.normalized_values`), so that rescaling
+            one component's rewards (and its support) leaves the trade-off unchanged (Method IV);
+            False (default): the paper's sum of the heads' returns.
 
     Examples:
         >>> import torch
@@ -123,6 +130,7 @@ class MultiHeadD4PGLoss(LossModule):
         delay_actor: bool = True,
         delay_value: bool = True,
         use_prioritized_weights: str | bool = "auto",
+        normalize_values: bool = False,
     ) -> None:
         super().__init__()
         if len(reward_keys) == 0:
@@ -141,6 +149,7 @@ class MultiHeadD4PGLoss(LossModule):
         self.register_buffer("episodic", torch.tensor(episodic), persistent=False)
         self.register_buffer("head_weights", torch.ones(self.num_heads), persistent=False)
         self.use_prioritized_weights = use_prioritized_weights
+        self.normalize_values = bool(normalize_values)
         self.reduction = "mean"
         self.convert_to_functional(actor_network, "actor_network", create_target_params=delay_actor)
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
@@ -261,7 +270,10 @@ class MultiHeadD4PGLoss(LossModule):
         )
         logits, atoms = self._critic(actor_td, params["value"].detach())
         q_per_head = (logits.softmax(-1) * atoms).sum(-1)  # [B, K]
-        objective = (q_per_head * self.head_weights).sum(-1)
+        heads = q_per_head
+        if self.normalize_values:  # units cannot tip the sum of the heads
+            heads = normalized_values(q_per_head, atoms[..., -1] - atoms[..., 0])
+        objective = (heads * self.head_weights).sum(-1)
         loss = self._reduce_loss(-objective, tensordict=tensordict, weights=weights)
         return loss, q_per_head.detach().reshape(-1, self.num_heads).mean(0)
 

@@ -25,6 +25,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "gentlerl.rewards.intrinsic": ("IntrinsicRewards",),
+        "gentlerl.rewards.lagrangian": ("CostLagrangian",),
         "gentlerl.rewards.multiplier": ("ImpactMultiplier",),
         "gentlerl.rewards.rescore": ("RescoreRewards",),
         "gentlerl.rewards.sum": ("SumRewards",),

@@ -23,6 +23,7 @@ from gentlerl.deprecation import moved_method
 from gentlerl.functional import tolerance_unit
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.rewards.chain import RewardChain
+from gentlerl.rewards.lagrangian import CostLagrangian
 from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.multiplier import ImpactMultiplier
 from gentlerl.rewards.rescore import Rescoring
@@ -134,6 +135,17 @@ class IntrinsicRewards(Rescoring):
             if settings.multiplier == "pid"
             else None
         )
+        #: The episodes' cost held under ``settings.cost_limit`` (``multiplier=lagrangian``).
+        self.lagrangian = (
+            CostLagrangian(
+                settings.cost_limit,
+                settings.cost_gains,
+                warmup_frames=settings.cost_warmup_frames,
+                multiplier_max=settings.cost_multiplier_max,
+            )
+            if settings.multiplier == "lagrangian"
+            else None
+        )
         self.buffer: ReplayBuffer | None = (
             make_model_buffer(settings.model_buffer_size, device=self.device)
             if self.losses
@@ -171,6 +183,18 @@ class IntrinsicRewards(Rescoring):
             obs_key=obs_key,
             device=device,
         )
+
+    def head_weights(self) -> dict[str, float]:
+        """The actor's weights on the heads the multiplier steers now: the penalty's
+        ``1 + mu`` (``multiplier=pid``), every head's ``1 / (1 + lambda)`` or
+        ``lambda / (1 + lambda)`` (``multiplier=lagrangian``), none without a multiplier."""
+        if self.multiplier is not None:
+            return {keys.PENALTY: self.multiplier.weight}
+        if self.lagrangian is not None:
+            return dict(
+                zip(self.reward_keys, self.lagrangian.weights(self.reward_keys), strict=True)
+            )
+        return {}
 
     @property
     def gated_transforms(self) -> list[ModelRewardTransform]:
@@ -277,6 +301,7 @@ class IntrinsicRewards(Rescoring):
             "num_updates": self.num_updates,
             "curiosity_scales": [list(t.curiosity_scale) for t in self._normalized],
             "multiplier": self.multiplier.state_dict() if self.multiplier else None,
+            "lagrangian": self.lagrangian.state_dict() if self.lagrangian else None,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -294,3 +319,5 @@ class IntrinsicRewards(Rescoring):
             t.curiosity_scale = (mean, count)  # the setter checks them
         if self.multiplier is not None and state.get("multiplier") is not None:
             self.multiplier.load_state_dict(state["multiplier"])
+        if self.lagrangian is not None and state.get("lagrangian") is not None:
+            self.lagrangian.load_state_dict(state["lagrangian"])

@@ -7,12 +7,13 @@ Adding a reward transform with its own critic head touches three places: its key
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from gentlerl import keys
-from gentlerl.config import GentlenessConfig, NetworkConfig
+from gentlerl.config import EnvConfig, GentlenessConfig, NetworkConfig
 
 if TYPE_CHECKING:
     from torchrl.envs.transforms import Transform
@@ -159,6 +160,14 @@ def _force_penalty(ing: Ingredients) -> Part:
     return Part(ForcePenalty(in_keys=[ing.force_key]))
 
 
+def _excess_penalty(ing: Ingredients) -> Part:
+    from gentlerl.transforms import ExcessPenalty
+
+    # Without a tolerance, the impact the paper's acceptability puts at 1/2 (lambda_2, N).
+    s = ing.settings
+    return Part(ExcessPenalty(s.lam[1] if s.tolerance is None else s.tolerance))
+
+
 def _torque_penalty(ing: Ingredients) -> Part:
     from gentlerl.transforms import TorquePenalty
 
@@ -175,6 +184,8 @@ COMPONENTS: dict[str, Component] = {
     # Beyond the paper (its future work on wear): total fingertip force and actuator effort.
     keys.FORCE_PENALTY: Component(_force_penalty, upper_bound=0.0),
     keys.TORQUE_PENALTY: Component(_torque_penalty, upper_bound=0.0),
+    # Method IV: the impact above the tolerance, in tolerances, at most 1 a step (a cost head).
+    keys.EXCESS_PENALTY: Component(_excess_penalty, upper_bound=0.0),
 }
 
 #: Reward components (critic heads, in order) of each variant of the paper's experiments.
@@ -190,6 +201,8 @@ VARIANTS: dict[str, tuple[str, ...]] = {
     # The paper's method plus a wear penalty: rF total force, rt actuator effort (torque).
     "r+rf+rsp+rF": (keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, keys.FORCE_PENALTY),
     "r+rf+rsp+rt": (keys.REWARD, keys.PENALTY, keys.PENALTY_SURPRISE, keys.TORQUE_PENALTY),
+    # Method IV's constrained baseline: the task and a cost critic (gentleness.multiplier=lagrangian).
+    "r+rc": (keys.REWARD, keys.EXCESS_PENALTY),
 }
 
 
@@ -215,6 +228,64 @@ def discounted_horizon(gamma: float, horizon: int) -> float:
     if not 0.0 <= gamma <= 1.0 or horizon < 1:
         raise ValueError(f"need gamma in [0, 1] and horizon >= 1, got {gamma} and {horizon}")
     return float(horizon) if gamma == 1.0 else (1.0 - gamma**horizon) / (1.0 - gamma)
+
+
+#: The support's margin on each side, as a fraction of the returns' range (:func:`derived_support`).
+HEADROOM = 0.1
+
+
+def derived_support(
+    reward_bounds: tuple[float, float], horizon: float, headroom: float = HEADROOM
+) -> tuple[float, float]:
+    r"""A head's support from its reward's per-step bounds :math:`[r_-, r_+]` and the discounted
+    horizon :math:`H_\gamma` (:func:`discounted_horizon`), with ``headroom`` :math:`h` on each side:
+
+    .. math:: G_- = \min(0, r_-) H_\gamma, \quad G_+ = \max(0, r_+) H_\gamma, \qquad
+       [v_{\min}, v_{\max}] = [G_- - h (G_+ - G_-),\; G_+ + h (G_+ - G_-)]
+
+    Every discounted return, of a full episode or of one cut short (hence the 0 in both bounds),
+    lies in :math:`[G_-, G_+]`, and so does an n-step target that bootstraps from a value inside
+    it; the headroom keeps a critic that overshoots on the way off the edge atoms. dm_control's
+    [0, 1] rewards over 1000 steps at gamma 0.99: [-10.0, 110.0].
+    """
+    low, high = reward_bounds
+    if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+        raise ValueError(
+            f"reward bounds must be finite [low, high], low <= high; got {reward_bounds}"
+        )
+    if not (horizon > 0 and headroom >= 0):
+        raise ValueError(f"need horizon > 0 and headroom >= 0, got {horizon} and {headroom}")
+    g_low, g_high = min(0.0, low) * horizon, max(0.0, high) * horizon
+    if g_low == g_high:
+        raise ValueError(f"reward bounds {reward_bounds} leave every return at 0: no support")
+    margin = headroom * (g_high - g_low)
+    return g_low - margin, g_high + margin
+
+
+#: Per-step bounds of the task reward of each external env source: dm_control's suite rewards lie
+#: in the unit interval (Tassa et al. 2018, "Reward": r(s, a) in [0, 1]).
+SOURCE_REWARD_BOUNDS: dict[str, tuple[float, float]] = {"dm_control": (0.0, 1.0)}
+
+
+def derives_support(env: EnvConfig, network: NetworkConfig) -> bool:
+    """Whether the task head's support is derived (:func:`derived_support`):
+    ``network.derive_support``, or where it is null, for an external env."""
+    return env.name is not None if network.derive_support is None else network.derive_support
+
+
+def task_reward_bounds(env: EnvConfig) -> tuple[float, float]:
+    """``env.reward_bounds``, else its source's (:data:`SOURCE_REWARD_BOUNDS`); a ``ValueError``
+    naming the setting to state where neither is known."""
+    if env.reward_bounds is not None:
+        low, high = env.reward_bounds
+        return float(low), float(high)
+    source = None if env.name is None else env.name.partition(":")[0]
+    if source in SOURCE_REWARD_BOUNDS:
+        return SOURCE_REWARD_BOUNDS[source]
+    raise ValueError(
+        f"network.derive_support needs the task reward's per-step bounds: set env.reward_bounds="
+        f"[low, high] (known for {sorted(SOURCE_REWARD_BOUNDS)} only; env.name={env.name!r})"
+    )
 
 
 def head_supports(
@@ -260,20 +331,25 @@ def head_supports(
 
 
 def critic_supports(
-    reward_keys: Sequence[str], network: NetworkConfig, horizon: float
+    reward_keys: Sequence[str],
+    network: NetworkConfig,
+    horizon: float,
+    task_support: tuple[float, float] | None = None,
 ) -> tuple[list[float], list[float]]:
     """Each critic head's ``(v_min, v_max)`` under ``network``'s settings (:func:`head_supports`).
 
-    A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
+    The task's head spans ``task_support`` where given (:func:`derived_support`), else
+    ``[network.v_min, network.v_max]``. A dense head spans ``network.dense_reward_bound`` (the penalty surprise's
     ``network.penalty_surprise_bound`` where set) x ``horizon``, the discounted horizon of an
     episode (:func:`discounted_horizon`): the largest return of a reward of that size at every
     step.
     """
     bound, rsp = network.dense_reward_bound, network.penalty_surprise_bound
+    v_min, v_max = task_support or (network.v_min, network.v_max)
     return head_supports(
         reward_keys,
-        v_min=network.v_min,
-        v_max=network.v_max,
+        v_min=v_min,
+        v_max=v_max,
         bounded=network.bounded_support,
         dense_span=None if bound is None else bound * horizon,
         spans=None if rsp is None else {keys.PENALTY_SURPRISE: rsp * horizon},

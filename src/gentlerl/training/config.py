@@ -173,13 +173,44 @@ def _run_problems(cfg: TrainConfig) -> list[str]:
             "< 2**32 (a resumed run seeds its collector with seed + the frames so far, numpy "
             "takes seeds below 2**32)"
         )
-    if cfg.gentleness.multiplier != "none" and keys.PENALTY not in cfg.reward_keys:
+    if cfg.gentleness.multiplier == "pid" and keys.PENALTY not in cfg.reward_keys:
         problems.append(
             f"gentleness.multiplier={cfg.gentleness.multiplier} weighs the penalty head, which "
             f"variant={cfg.variant} lacks (use a variant with rf)"
         )
+    if cfg.gentleness.multiplier == "lagrangian" and not {
+        keys.PENALTY,
+        keys.EXCESS_PENALTY,
+    } & set(cfg.reward_keys):
+        problems.append(
+            f"gentleness.multiplier=lagrangian weighs a cost head, which variant={cfg.variant} "
+            "lacks (use a variant with rc or rf)"
+        )
     problem = run_dir_problem(cfg.run_dir)
-    return problems + ([problem] if problem else [])
+    return problems + _support_problems(cfg) + ([problem] if problem else [])
+
+
+def _support_problems(cfg: TrainConfig) -> list[str]:
+    """A derived task support needs the reward's bounds and leaves ``v_min``/``v_max`` unset."""
+    from gentlerl.rewards.variants import derives_support, task_reward_bounds
+
+    bounds = cfg.env.reward_bounds
+    if bounds is not None and not (len(bounds) == 2 and bounds[0] <= bounds[1]):
+        return [f"env.reward_bounds={list(bounds)} must be [low, high] with low <= high"]
+    if not derives_support(cfg.env, cfg.network):
+        return []
+    default = type(cfg.network)()
+    problems = [
+        f"network.{name}={getattr(cfg.network, name)} sizes a hand-set support; this run derives "
+        "the task head's (network.derive_support=false to set it by hand)"
+        for name in ("v_min", "v_max")
+        if getattr(cfg.network, name) != getattr(default, name)
+    ]
+    try:
+        task_reward_bounds(cfg.env)
+    except ValueError as err:
+        problems.append(str(err))
+    return problems
 
 
 def _group_problems(cfg: TrainConfig) -> list[str]:

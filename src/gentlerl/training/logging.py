@@ -25,6 +25,7 @@ from tqdm.auto import tqdm
 from gentlerl import keys
 from gentlerl.config.layout import LOGS, RunLayout
 from gentlerl.files import open_append, write_atomic
+from gentlerl.functional import excess_cost
 from gentlerl.training.evaluation import OUTCOMES
 
 #: The columns of an episodes CSV; ``success`` and ``broken`` only where the env defines them.
@@ -147,8 +148,10 @@ class EpisodeStats:
       reward entries.
     """
 
-    def __init__(self, reward_keys: list[str]) -> None:
+    def __init__(self, reward_keys: list[str], tolerance: float | None = None) -> None:
         self.summed = [k for k in dict.fromkeys(reward_keys) if k != keys.REWARD]
+        #: With a tolerance, each episode's ``cost``: the sum of :func:`excess_cost`.
+        self.tolerance = tolerance
         self._open: dict[int, dict[str, float]] = {}
 
     def update(self, batch: TensorDictBase) -> list[dict[str, float]]:
@@ -159,6 +162,8 @@ class EpisodeStats:
         nxt, traj = batch.get("next").reshape(-1), traj.reshape(-1)
         done = nxt.get(keys.DONE).reshape(-1)
         sums = {f"return_{k}": nxt.get(k).reshape(-1) for k in self.summed}
+        if self.tolerance is not None:
+            sums["cost"] = excess_cost(nxt.get(keys.IMPACT).reshape(len(nxt), -1), self.tolerance)
         # success / broken only where the env has them (an external env may not)
         maxima = {
             key: nxt.get(key).reshape(-1).float()
@@ -231,8 +236,9 @@ class Progress:
         enabled: bool,
         unit: str = "N",
         bar: tuple[int, str] | None = None,
+        tolerance: float | None = None,
     ) -> None:
-        self.episodes = EpisodeStats(reward_keys)
+        self.episodes = EpisodeStats(reward_keys, tolerance)
         self.unit = unit
         self.recent: deque[dict[str, float]] = deque(maxlen=20)
         position, desc = bar if bar is not None else (None, None)

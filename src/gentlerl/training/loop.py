@@ -148,6 +148,7 @@ class Trainer:
             self.rewards.reward_keys, cfg.collector.total_frames, self.counters["frames"],
             cfg.logging.progress, force_unit(cfg.env.force_scale),
             bar=None if bar is None else (bar, f"seed {cfg.seed}"),
+            tolerance=cfg.gentleness.tolerance,
         )  # fmt: skip
         next_sync = self.counters["updates"] + cfg.collector.weight_sync_every
         return LoopPass(collector, logger, eval_env, progress, self.wall_s, next_sync)

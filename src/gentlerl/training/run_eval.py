@@ -56,6 +56,8 @@ def steer(
 ) -> None:
     """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``),
     or with ``multiplier_episodes`` after that many noise-free episodes at each PID step."""
+    if trainer.rewards.lagrangian is not None:
+        return _steer_lagrangian(trainer, episodes, logger)
     multiplier, frames = trainer.rewards.multiplier, trainer.counters["frames"]
     if multiplier is None or not trainer.learning():
         return  # the policy's episodes only: not those of the first random actions
@@ -67,3 +69,17 @@ def steer(
     weight = multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
     trainer.loss.set_head_weight(keys.PENALTY, weight)
     logger.log({f"train/{k}": v for k, v in multiplier.scalars().items()}, frames)
+
+
+def _steer_lagrangian(
+    trainer: SeedRun, episodes: list[dict[str, float]], logger: RunLogger
+) -> None:
+    """Every head's weight after the finished ``episodes``' costs (``multiplier=lagrangian``);
+    the episodes of the first random actions count too (the warm-up keeps the multiplier)."""
+    lagrangian, frames = trainer.rewards.lagrangian, trainer.counters["frames"]
+    if not episodes:
+        return
+    lagrangian.observe([e["cost"] for e in episodes], frames)
+    for key, weight in trainer.rewards.head_weights().items():
+        trainer.loss.set_head_weight(key, weight)
+    logger.log({f"train/{k}": v for k, v in lagrangian.scalars().items()}, frames)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any, Protocol
 
-from gentlerl import keys
 from gentlerl.agent.learner import TrainingState
 from gentlerl.training import guards
 from gentlerl.training.checkpoint import (
@@ -97,8 +96,8 @@ def load_trainer_state(trainer: SeedRun, state: dict[str, Any]) -> None:
     check_critic_supports(state, trainer.loss.value_network, trainer.layout.checkpoint)
     trainer.learner.restore(TrainingState(**state["learner"]), trainer.seat)
     trainer.rewards.load_state_dict(state["intrinsic"])
-    if trainer.rewards.multiplier is not None:  # the actor's objective as it was saved
-        trainer.loss.set_head_weight(keys.PENALTY, trainer.rewards.multiplier.weight)
+    for key, weight in trainer.rewards.head_weights().items():  # the objective as it was saved
+        trainer.loss.set_head_weight(key, weight)
     if state["rb"] is not None:  # saved with checkpoint_buffer=false: start empty, refill
         load_replay_buffer_state(trainer.rb, state["rb"], trainer.layout.checkpoint)
         trainer.writer.load_state_dict(state["nstep"])

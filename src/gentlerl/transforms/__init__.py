@@ -31,7 +31,7 @@ A variant's transforms, their models and the single-critic helpers (``SumRewards
 
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.icm import ICMReward
-from gentlerl.transforms.impact import ImpactPenalty, NonFiniteForceError
+from gentlerl.transforms.impact import ExcessPenalty, ImpactPenalty, NonFiniteForceError
 from gentlerl.transforms.sensor_map import TouchSensorMap
 from gentlerl.transforms.sensor_map import refuse_renamed as __getattr__  # noqa: F401 (PEP 562)
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
@@ -43,6 +43,7 @@ ICM = ICMReward
 __all__ = [
     "ICM",
     "DynamicsSurprise",
+    "ExcessPenalty",
     "ForcePenalty",
     "ICMReward",
     "ImpactPenalty",

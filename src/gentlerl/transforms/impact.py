@@ -1,4 +1,5 @@
-"""``ImpactPenalty``: impact per sensor site (eq. 1) and the impact penalty r^f (eq. 4)."""
+"""``ImpactPenalty``: impact per sensor site (eq. 1) and the impact penalty r^f (eq. 4);
+``ExcessPenalty``: Method IV's cost, the impact above a tolerance."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from tensordict import TensorDictBase
 from torchrl.data import Composite
 
 from gentlerl import keys
-from gentlerl.functional import impact, impact_penalty
+from gentlerl.functional import excess_cost, impact, impact_penalty
 from gentlerl.transforms.base import TransitionTransform, check_lam
 
 
@@ -113,3 +114,52 @@ def _check_force(key: object, force: torch.Tensor, step: str) -> None:
             f"ImpactPenalty: {key!r} holds a non-finite force ({value}) at {step}, index "
             f"{index[:-2] or '()'}, site {index[-2]}, channel {index[-1]}"
         )
+
+
+class ExcessPenalty(TransitionTransform):
+    r"""Writes ``excess_penalty`` :math:`-c_t` ``[1]`` under ``"next"``: Method IV's cost, the
+    impact above the tolerance in tolerances, capped at 1 a step
+    (:func:`~gentlerl.functional.excess_cost`), as a reward its own critic head maximises.
+
+    Reads the ``impact`` that :class:`ImpactPenalty` writes (so it comes after it). An episode's
+    cost :math:`J = \sum_t c_t` is what a Lagrangian holds under a limit
+    (:class:`~gentlerl.rewards.CostLagrangian`).
+
+    Args:
+        tolerance: :math:`T`, in the unit of ``impact``.
+        in_keys: ``[impact_key]``; out_keys: ``[penalty_key]``.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> td = TensorDict({"next": {"impact": torch.tensor([3.0, 1.0, 0.0])}})
+        >>> ExcessPenalty(2.0)(td)["next", "excess_penalty"]
+        tensor([-0.5000])
+    """
+
+    def __init__(
+        self,
+        tolerance: float,
+        *,
+        in_keys: list[str] | None = None,
+        out_keys: list[str] | None = None,
+    ) -> None:
+        in_keys = in_keys or [keys.IMPACT]
+        out_keys = out_keys or [keys.EXCESS_PENALTY]
+        if len(in_keys) != 1 or len(out_keys) != 1:
+            raise ValueError(
+                f"ExcessPenalty reads one impact key and writes one penalty; got in_keys="
+                f"{in_keys}, out_keys={out_keys}"
+            )
+        if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+            raise ValueError(
+                f"ExcessPenalty: tolerance must be a finite impact > 0, got {tolerance!r}"
+            )
+        self.tolerance = float(tolerance)
+        super().__init__(in_keys=in_keys, out_keys=out_keys)
+        self.scalar_out_keys = (out_keys[0],)
+
+    def compute(
+        self, tensordict: TensorDictBase, next_tensordict: TensorDictBase
+    ) -> dict[str, torch.Tensor]:
+        m = self.read(next_tensordict, self.in_keys[0])
+        return {self.out_keys[0]: -excess_cost(m, self.tolerance).unsqueeze(-1)}
