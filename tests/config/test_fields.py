@@ -136,6 +136,7 @@ VALUE_LIMITS = {
     "gentleness.multiplier_integral_max": 1e6, "gentleness.multiplier_base": 1e6,
     "gentleness.cost_limit": 10**10, "gentleness.cost_gains": 1e3,
     "gentleness.cost_warmup_frames": 10**10, "gentleness.cost_multiplier_max": 1e6,
+    "gentleness.cost_period": 10**10,
 }  # fmt: skip
 
 
@@ -156,6 +157,7 @@ def test_the_declared_ranges_are_the_ones_validate_checked_before():
         "gentleness.cost_limit",
         "gentleness.cost_gains",
         "gentleness.cost_warmup_frames",
+        "gentleness.cost_period",
         "gentleness.cost_multiplier_max",
     }
     low = {

@@ -53,27 +53,35 @@ def test_normalized_values_divide_by_the_batch_magnitude_with_a_floor():
     torch.testing.assert_close(q.grad[:, 0], torch.full((3,), 0.25))
 
 
-def test_the_pid_waits_for_the_warmup_then_steps_on_the_windows_mean():
-    lag = CostLagrangian(limit=5.0, gains=(0.1, 0.01, 0.0), warmup_frames=1000, window=2)
-    assert lag.observe([20.0, 30.0], frames=500) == 0.0  # warm-up: the window fills, no step
+def test_the_pid_waits_for_the_warmup_then_steps_once_a_period_on_the_windows_mean():
+    lag = CostLagrangian(
+        limit=5.0, gains=(0.1, 0.01, 0.0), warmup_frames=1000, window=2, period=200
+    )
+    for frames in (200, 400, 1000):  # warm-up (up to and at 1000): the window fills, no step
+        assert lag.observe([20.0, 30.0], frames=frames) == 0.0
     assert lag.steps == 0 and list(lag.recent) == [20.0, 30.0]
-    # After it: mean(30, 10) = 20, e = 15 -> I = 0.15, lambda = 0.1 * 15 + 0.15 = 1.65.
-    assert lag.observe([10.0], frames=1000) == pytest.approx(1.65)
+    assert lag.observe([10.0], frames=1100) == 0.0  # no multiple of 200 crossed since 1000
+    # 1200: mean(30, 10) = 20, e = 15 -> I = 0.15, lambda = 0.1 * 15 + 0.15 = 1.65.
+    assert lag.observe([], frames=1200) == pytest.approx(1.65)
     assert lag.weights([keys.REWARD, keys.EXCESS_PENALTY]) == pytest.approx([1 / 2.65, 1.65 / 2.65])
-    # mean(10, 0) = 5: at the limit, e = 0 -> lambda = the integral, 0.15.
-    assert lag.observe([0.0], frames=1200) == pytest.approx(0.15)
+    # 1400: mean(10, 0) = 5, at the limit: e = 0 -> lambda = the integral, 0.15.
+    assert lag.observe([0.0], frames=1400) == pytest.approx(0.15)
+    assert lag.steps == 2
     with pytest.raises(ValueError, match="an episode's cost must be finite and >= 0, got nan"):
-        lag.observe([math.nan], frames=1300)
-    assert lag.episodes == 4  # the refused batch took nothing
+        lag.observe([1.0, math.nan], frames=1600)
+    assert lag.episodes == 8 and lag.frames == 1400  # the refused batch took nothing
 
 
 def test_the_state_round_trips_and_refuses_a_corrupt_entry():
-    lag = CostLagrangian(limit=1.0, gains=(0.1, 0.01, 0.01))
+    lag = CostLagrangian(limit=1.0, gains=(0.1, 0.01, 0.01), period=10)
     lag.observe([4.0, 2.0], frames=0)
-    other = CostLagrangian(limit=1.0, gains=(0.1, 0.01, 0.01))
+    lag.observe([3.0], frames=10)
+    other = CostLagrangian(limit=1.0, gains=(0.1, 0.01, 0.01), period=10)
     other.load_state_dict(lag.state_dict())
     assert other.state_dict() == lag.state_dict()
-    for name, bad in (("multiplier", -1.0), ("integral", 1e9), ("recent", [math.inf])):
+    assert lag.steps == 1 and lag.multiplier > 0
+    bad_entries = (("multiplier", -1.0), ("integral", 1e9), ("recent", [math.inf]), ("frames", -2))
+    for name, bad in bad_entries:
         with pytest.raises(ValueError, match=f"CostLagrangian state '{name}'="):
             other.load_state_dict({**lag.state_dict(), name: bad})
     with pytest.raises(ValueError, match="'steps'='<missing>' must be an integer >= 0"):
@@ -135,3 +143,44 @@ def test_ten_times_the_units_of_a_component_leave_the_learned_trade_off_unchange
     # Without the normalisation the same 10x moves the trade-off: the test can tell.
     plain = _toy_run(1.0, 1.0, normalize=False)
     assert (_toy_run(1.0, 10.0, normalize=False) - plain).abs().max() > 0.1
+
+
+def test_a_run_steers_every_head_and_resumes_its_multiplier(tmp_path):
+    """r+rc on the toy hand, limit 0, a period of 100 env steps and a 300-step warm-up: the
+    multiplier stays 0 through the warm-up, then rises (every pressing episode costs > 0), and
+    the actor's weights are 1 / (1 + lambda) and lambda / (1 + lambda); a resume restores it."""
+    from gentlerl.training import Trainer
+    from tests.helpers import tiny_config, toy_env
+
+    gentle = dict(tolerance=0.5, multiplier="lagrangian", cost_limit=0.0, cost_period=100)
+    gentle.update(cost_warmup_frames=300, cost_gains=(0.1, 0.1, 0.0))
+    over = dict(variant="r+rc", gentleness=gentle, learner=dict(normalize_values=True))
+    trainer = Trainer(tiny_config(tmp_path / "run", total_frames=900, **over), toy_env)
+    assert trainer.learner.loss.normalize_values
+    assert trainer.learner.loss.head_weights.tolist() == [1.0, 0.0]
+    trainer.run()
+    lag = trainer.rewards.lagrangian
+    assert lag.steps == 6  # 400, 500, ..., 900: the multiples of 100 past the warm-up
+    assert lag.cost > 0 and lag.multiplier > 0
+    reward_side, cost_side = 1 / (1 + lag.multiplier), lag.multiplier / (1 + lag.multiplier)
+    torch.testing.assert_close(
+        trainer.learner.loss.head_weights, torch.tensor([reward_side, cost_side])
+    )
+    longer = tiny_config(tmp_path / "run", total_frames=1000, resume=True, **over)
+    resumed = Trainer(longer, toy_env)
+    resumed._resume()
+    assert resumed.rewards.lagrangian.state_dict() == lag.state_dict()
+    torch.testing.assert_close(resumed.learner.loss.head_weights, trainer.learner.loss.head_weights)
+
+
+def test_the_lagrangian_and_a_derived_support_are_refused_up_front(tmp_path):
+    from tests.helpers import tiny_config
+
+    with pytest.raises(ValueError, match="weighs a cost head, which variant=r lacks"):
+        tiny_config(tmp_path, variant="r", gentleness=dict(tolerance=1.0, multiplier="lagrangian"))
+    with pytest.raises(ValueError, match="cost_limit=5.0 applies to gentleness.multiplier=lag"):
+        tiny_config(tmp_path, variant="r+rc", gentleness=dict(cost_limit=5.0))
+    with pytest.raises(ValueError, match="network.derive_support needs the task reward's per-s"):
+        tiny_config(tmp_path, network=dict(derive_support=True))
+    with pytest.raises(ValueError, match="network.v_max=100.0 sizes a hand-set support"):
+        tiny_config(tmp_path, network=dict(derive_support=True, v_max=100.0))

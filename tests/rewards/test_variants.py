@@ -145,3 +145,26 @@ def test_critic_supports_span_the_dense_heads_bounds_times_the_horizon():
     assert critic_supports(heads, only_rsp, horizon=10.0) == (
         [-4.0, -4.0, -20.0, -4.0], [6.0, 0.0, 20.0, 0.0],
     )  # fmt: skip
+
+
+def test_a_derived_support_covers_every_discounted_return_with_headroom():
+    from gentlerl.config import EnvConfig, NetworkConfig
+    from gentlerl.rewards.variants import derived_support, derives_support, task_reward_bounds
+
+    # dm_control: r in [0, 1], 1000 steps at gamma 0.99 -> H = 99.996; [0, H] +- 10 % of H.
+    horizon = discounted_horizon(0.99, 1000)
+    low, high = derived_support((0.0, 1.0), horizon)
+    assert (low, high) == pytest.approx((-0.1 * horizon, 1.1 * horizon))
+    assert derived_support((-2.0, -1.0), 10.0, headroom=0.0) == (-20.0, 0.0)  # 0: a cut episode
+    with pytest.raises(ValueError, match="leave every return at 0"):
+        derived_support((0.0, 0.0), 10.0)
+    external = EnvConfig(name="dm_control:finger-spin")
+    assert task_reward_bounds(external) == (0.0, 1.0)
+    assert derives_support(external, NetworkConfig()) and not derives_support(
+        EnvConfig(), NetworkConfig()
+    )
+    assert task_reward_bounds(EnvConfig(reward_bounds=(-1.0, 5.0))) == (-1.0, 5.0)
+    v_min, v_max = critic_supports(
+        [keys.REWARD, keys.EXCESS_PENALTY], NetworkConfig(), horizon, (low, high)
+    )
+    assert v_min == pytest.approx([low, -horizon]) and v_max == pytest.approx([high, 0.0])

@@ -151,6 +151,11 @@ class GentlenessConfig:
         "multiplier=lagrangian: env steps before the multiplier moves (the critics learn first)",
         bounds=f"[0, {MAX_FRAMES}]",
     )
+    cost_period: int = setting(
+        2000,
+        "multiplier=lagrangian: env steps between the multiplier's PID steps (OmniSafe's epoch)",
+        bounds=f"[1, {MAX_FRAMES}]",
+    )
     cost_multiplier_max: float = setting(
         100.0,
         "multiplier=lagrangian: cap of the multiplier's PID integral (OmniSafe's penalty_max)",

@@ -96,7 +96,13 @@ def gentleness_problems(gentleness: GentlenessConfig) -> list[str]:
             "multiplier_base",
             "multiplier_episodes",
         ),
-        "lagrangian": ("cost_limit", "cost_gains", "cost_warmup_frames", "cost_multiplier_max"),
+        "lagrangian": (
+            "cost_limit",
+            "cost_gains",
+            "cost_warmup_frames",
+            "cost_period",
+            "cost_multiplier_max",
+        ),
     }
     problems += [
         f"gentleness.{name}={getattr(gentleness, name)} applies to gentleness.multiplier={kind} "

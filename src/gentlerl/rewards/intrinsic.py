@@ -142,6 +142,7 @@ class IntrinsicRewards(Rescoring):
                 settings.cost_gains,
                 warmup_frames=settings.cost_warmup_frames,
                 multiplier_max=settings.cost_multiplier_max,
+                period=settings.cost_period,
             )
             if settings.multiplier == "lagrangian"
             else None

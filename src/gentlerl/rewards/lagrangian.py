@@ -7,9 +7,11 @@ The constrained problem, as safe RL writes it (Altman 1999; Ray et al. 2019):
 with :math:`c_t` the impact above the tolerance in tolerances, capped at 1 a step
 (:func:`~gentlerl.functional.excess_cost`), and :math:`d` the limit, in the same unit: steps of
 violation per episode. The multiplier :math:`\lambda \ge 0` is a PID Lagrangian (Stooke, Achiam
-and Abbeel 2020; :func:`~gentlerl.functional.pid_lagrangian`) on the mean cost of the last
-:data:`WINDOW` finished episodes, frozen at 0 for ``warmup_frames`` env steps (OmniSafe's
-``warmup_epochs``: the critics learn before the trade-off moves), and the actor maximises
+and Abbeel 2020; :func:`~gentlerl.functional.pid_lagrangian`) stepped once per ``period`` env
+steps on the mean cost of the last :data:`WINDOW` finished episodes, frozen at 0 for
+``warmup_frames`` env steps: OmniSafe's DDPG-PID (one step per 2,000-step epoch on its logger's
+10-episode window, after ``warmup_epochs``: the critics learn before the trade-off moves), and
+the actor maximises
 :math:`(Q_r - \lambda Q_c) / (1 + \lambda)` (:func:`~gentlerl.functional.lagrangian_weights`),
 each head's value divided by its batch magnitude with ``learner.normalize_values``.
 
@@ -68,6 +70,7 @@ class CostLagrangian:
         gains: :math:`(K_P, K_I, K_D)` on :math:`J_c - d`.
         warmup_frames: env steps before :math:`\lambda` moves (episodes before it still fill the
             window).
+        period: env steps between PID steps (OmniSafe's epoch: 2,000).
         multiplier_max: the cap of the PID integral (OmniSafe's ``penalty_max``), so a long
             violation cannot store more than it.
         window: :data:`WINDOW` episodes by default.
@@ -80,6 +83,7 @@ class CostLagrangian:
         warmup_frames: int = 0,
         multiplier_max: float = 100.0,
         window: int = WINDOW,
+        period: int = 2000,
     ) -> None:
         if not (is_finite_number(limit) and limit >= 0):
             raise ValueError(f"limit must be a finite cost >= 0, got {limit!r}")
@@ -89,8 +93,13 @@ class CostLagrangian:
             raise ValueError(f"multiplier_max must be a finite number >= 0, got {multiplier_max!r}")
         if not (_is_count(window) and window >= 1):
             raise ValueError(f"window must be an integer >= 1 episode, got {window!r}")
+        if not (_is_count(period) and period >= 1):
+            raise ValueError(f"period must be an integer >= 1 env step, got {period!r}")
         self.limit, self.gains = float(limit), check_gains(gains)
         self.warmup_frames, self.multiplier_max = int(warmup_frames), float(multiplier_max)
+        self.period = int(period)
+        #: The env steps at the last :meth:`observe` (-1: none yet).
+        self.frames = -1
         self.recent: deque[float] = deque(maxlen=window)
         self.multiplier = self.integral = self.cost = 0.0
         self.episodes = self.steps = 0
@@ -100,18 +109,20 @@ class CostLagrangian:
         return head_weights(reward_keys, self.multiplier)
 
     def observe(self, costs: Iterable[float], frames: int) -> float:
-        r"""Take the finished episodes' costs :math:`J = \sum_t c_t` and, once ``frames`` (the
-        run's env steps) has passed the warm-up, step the PID once per episode on the window's
-        mean. Returns :math:`\lambda`. A non-finite or negative cost is refused (it would stick)."""
+        r"""Take the finished episodes' costs :math:`J = \sum_t c_t` and step the PID once on the
+        window's mean where ``frames`` (the run's env steps) has crossed a multiple of ``period``
+        since the last call and passed the warm-up. Returns :math:`\lambda`. A non-finite or
+        negative cost is refused before anything is taken (it would stick)."""
         costs = list(costs)
         for cost in costs:
             if not (is_finite_number(cost) and cost >= 0):
                 raise ValueError(f"an episode's cost must be finite and >= 0, got {cost!r}")
-        for cost in costs:
-            self.recent.append(float(cost))
-            self.episodes += 1
-            if frames >= self.warmup_frames:
-                self._step()
+        self.recent.extend(float(c) for c in costs)
+        self.episodes += len(costs)
+        due = self.frames >= 0 and frames // self.period > self.frames // self.period
+        self.frames = frames
+        if due and frames > self.warmup_frames and self.recent:
+            self._step()
         return self.multiplier
 
     def _step(self) -> None:
@@ -139,6 +150,7 @@ class CostLagrangian:
             "cost": self.cost,
             "episodes": self.episodes,
             "steps": self.steps,
+            "frames": self.frames,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -151,6 +163,7 @@ class CostLagrangian:
             "cost": "a finite number >= 0",
             "episodes": "an integer >= 0",
             "steps": "an integer >= 0",
+            "frames": "an integer >= -1 (-1: none yet)",
         }
         for name, what in expected.items():
             if name not in state or not _valid(name, state[name], self.multiplier_max):
@@ -161,6 +174,7 @@ class CostLagrangian:
         self.multiplier, self.integral = float(state["multiplier"]), float(state["integral"])
         self.cost = float(state["cost"])
         self.episodes, self.steps = int(state["episodes"]), int(state["steps"])
+        self.frames = int(state["frames"])
 
 
 def _is_count(value: object) -> bool:
@@ -176,5 +190,7 @@ def _valid(name: str, value: object, integral_max: float) -> bool:
         )
     if name in ("episodes", "steps"):
         return _is_count(value)
+    if name == "frames":
+        return _is_count(value + 1) if isinstance(value, int) else False
     high = integral_max if name == "integral" else math.inf
     return is_finite_number(value) and 0 <= value <= high
