@@ -61,15 +61,24 @@ def test_the_pid_waits_for_the_warmup_then_steps_once_a_period_on_the_windows_me
         assert lag.observe([20.0, 30.0], frames=frames) == 0.0
     assert lag.steps == 0 and list(lag.recent) == [20.0, 30.0]
     assert lag.observe([10.0], frames=1100) == 0.0  # no multiple of 200 crossed since 1000
-    # 1200: mean(30, 10) = 20, e = 15 -> I = 0.15, lambda = 0.1 * 15 + 0.15 = 1.65.
-    assert lag.observe([], frames=1200) == pytest.approx(1.65)
-    assert lag.weights([keys.REWARD, keys.EXCESS_PENALTY]) == pytest.approx([1 / 2.65, 1.65 / 2.65])
-    # 1400: mean(10, 0) = 5, at the limit: e = 0 -> lambda = the integral, 0.15.
-    assert lag.observe([0.0], frames=1400) == pytest.approx(0.15)
+    # 1200: mean(30, 10) = 20 = 4 limits, e = 3 -> I = 0.03, lambda = 0.1 * 3 + 0.03 = 0.33.
+    assert lag.observe([], frames=1200) == pytest.approx(0.33)
+    assert lag.weights([keys.REWARD, keys.EXCESS_PENALTY]) == pytest.approx([1 / 1.33, 0.33 / 1.33])
+    # 1400: mean(10, 0) = 5, at the limit: e = 0 -> lambda = the integral, 0.03.
+    assert lag.observe([0.0], frames=1400) == pytest.approx(0.03)
     assert lag.steps == 2
     with pytest.raises(ValueError, match="an episode's cost must be finite and >= 0, got nan"):
         lag.observe([1.0, math.nan], frames=1600)
     assert lag.episodes == 8 and lag.frames == 1400  # the refused batch took nothing
+
+
+def test_the_error_is_in_limits_so_one_set_of_gains_serves_every_limit():
+    hand, finger = (CostLagrangian(d, (1.0, 0.1, 0.0), period=1) for d in (1.0, 25.0))
+    hand.observe([], frames=0), finger.observe([], frames=0)  # the first call only counts
+    # Twice the limit on both: e = 1 -> lambda = 1 + 0.1.
+    assert hand.observe([2.0], frames=1) == finger.observe([50.0], frames=1) == pytest.approx(1.1)
+    with pytest.raises(ValueError, match="limit must be a finite cost > 0, got 0.0"):
+        CostLagrangian(0.0, (1.0, 0.1, 0.0))
 
 
 def test_the_state_round_trips_and_refuses_a_corrupt_entry():
@@ -146,13 +155,13 @@ def test_ten_times_the_units_of_a_component_leave_the_learned_trade_off_unchange
 
 
 def test_a_run_steers_every_head_and_resumes_its_multiplier(tmp_path):
-    """r+rc on the toy hand, limit 0, a period of 100 env steps and a 300-step warm-up: the
+    """r+rc on the toy hand, limit 0.01, a period of 100 env steps and a 300-step warm-up: the
     multiplier stays 0 through the warm-up, then rises (every pressing episode costs > 0), and
     the actor's weights are 1 / (1 + lambda) and lambda / (1 + lambda); a resume restores it."""
     from gentlerl.training import Trainer
     from tests.helpers import tiny_config, toy_env
 
-    gentle = dict(tolerance=0.5, multiplier="lagrangian", cost_limit=0.0, cost_period=100)
+    gentle = dict(tolerance=0.5, multiplier="lagrangian", cost_limit=0.01, cost_period=100)
     gentle.update(cost_warmup_frames=300, cost_gains=(0.1, 0.1, 0.0))
     over = dict(variant="r+rc", gentleness=gentle, learner=dict(normalize_values=True))
     trainer = Trainer(tiny_config(tmp_path / "run", total_frames=900, **over), toy_env)

@@ -138,12 +138,12 @@ class GentlenessConfig:
         "multiplier=lagrangian: the episodes' mean cost allowed, in steps of violation (a step's "
         "cost is its impact above the tolerance in tolerances, capped at 1; Safety Gym: 25 per "
         "1000 steps)",
-        bounds=f"[0, {MAX_FRAMES}]",
+        bounds=f"(0, {MAX_FRAMES}]",
     )
     cost_gains: tuple[float, float, float] = setting(
-        (0.1, 0.01, 0.01),
-        "multiplier=lagrangian: PID gains [K_P, K_I, K_D] on the mean episode cost minus the "
-        "limit (OmniSafe's PID Lagrangian defaults)",
+        (1.0, 0.1, 0.0),
+        "multiplier=lagrangian: PID gains [K_P, K_I, K_D] on the mean episode cost in limits "
+        "minus 1 (J / cost_limit - 1: one set of gains for every limit)",
         bounds=f"[0, {MAX_GAIN}]",
     )
     cost_warmup_frames: int = setting(
@@ -152,8 +152,9 @@ class GentlenessConfig:
         bounds=f"[0, {MAX_FRAMES}]",
     )
     cost_period: int = setting(
-        2000,
-        "multiplier=lagrangian: env steps between the multiplier's PID steps (OmniSafe's epoch)",
+        1000,
+        "multiplier=lagrangian: env steps between the multiplier's PID steps (half OmniSafe's "
+        "2000-step epoch)",
         bounds=f"[1, {MAX_FRAMES}]",
     )
     cost_multiplier_max: float = setting(

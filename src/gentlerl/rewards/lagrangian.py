@@ -8,10 +8,10 @@ with :math:`c_t` the impact above the tolerance in tolerances, capped at 1 a ste
 (:func:`~gentlerl.functional.excess_cost`), and :math:`d` the limit, in the same unit: steps of
 violation per episode. The multiplier :math:`\lambda \ge 0` is a PID Lagrangian (Stooke, Achiam
 and Abbeel 2020; :func:`~gentlerl.functional.pid_lagrangian`) stepped once per ``period`` env
-steps on the mean cost of the last :data:`WINDOW` finished episodes, frozen at 0 for
-``warmup_frames`` env steps: OmniSafe's DDPG-PID (one step per 2,000-step epoch on its logger's
-10-episode window, after ``warmup_epochs``: the critics learn before the trade-off moves), and
-the actor maximises
+steps on the mean cost of the last :data:`WINDOW` finished episodes, in limits
+(:math:`e = J_c / d - 1`), frozen at 0 for ``warmup_frames`` env steps: OmniSafe's DDPG-PID (one
+step per epoch on its logger's 10-episode window, after ``warmup_epochs``: the critics learn
+before the trade-off moves), and the actor maximises
 :math:`(Q_r - \lambda Q_c) / (1 + \lambda)` (:func:`~gentlerl.functional.lagrangian_weights`),
 each head's value divided by its batch magnitude with ``learner.normalize_values``.
 
@@ -66,11 +66,13 @@ class CostLagrangian:
     r""":math:`\lambda`, stepped on the finished episodes' costs (:meth:`observe`).
 
     Args:
-        limit: :math:`d`, the episodes' mean cost allowed (steps of violation per episode).
-        gains: :math:`(K_P, K_I, K_D)` on :math:`J_c - d`.
+        limit: :math:`d > 0`, the episodes' mean cost allowed (steps of violation per episode).
+        gains: :math:`(K_P, K_I, K_D)` on the error in limits, :math:`J_c / d - 1`: one set of
+            gains serves a limit of 1 on the hand and of 25 on a 1000-step task.
         warmup_frames: env steps before :math:`\lambda` moves (episodes before it still fill the
             window).
-        period: env steps between PID steps (OmniSafe's epoch: 2,000).
+        period: env steps between PID steps (half OmniSafe's 2,000-step epoch: a 30k-frame
+            run steps 24 times after a warm-up of a fifth of it).
         multiplier_max: the cap of the PID integral (OmniSafe's ``penalty_max``), so a long
             violation cannot store more than it.
         window: :data:`WINDOW` episodes by default.
@@ -83,10 +85,10 @@ class CostLagrangian:
         warmup_frames: int = 0,
         multiplier_max: float = 100.0,
         window: int = WINDOW,
-        period: int = 2000,
+        period: int = 1000,
     ) -> None:
-        if not (is_finite_number(limit) and limit >= 0):
-            raise ValueError(f"limit must be a finite cost >= 0, got {limit!r}")
+        if not (is_finite_number(limit) and limit > 0):
+            raise ValueError(f"limit must be a finite cost > 0, got {limit!r}")
         if not (_is_count(warmup_frames)):
             raise ValueError(f"warmup_frames must be an integer >= 0, got {warmup_frames!r}")
         if not (is_finite_number(multiplier_max) and multiplier_max >= 0):
@@ -126,10 +128,16 @@ class CostLagrangian:
         return self.multiplier
 
     def _step(self) -> None:
+        """One PID update on the window's mean cost in limits: :math:`e = J_c / d - 1`."""
         cost = statistics.fmean(self.recent)
         previous = self.cost if self.steps else cost  # no derivative kick at the first step
         self.multiplier, self.integral = pid_lagrangian(
-            cost, self.limit, self.integral, previous, self.gains, self.multiplier_max
+            cost / self.limit,
+            1.0,
+            self.integral,
+            previous / self.limit,
+            self.gains,
+            self.multiplier_max,
         )
         self.cost = cost
         self.steps += 1
