@@ -178,3 +178,16 @@ def test_a_group_of_three_seeds_is_its_seeds_alone_over_their_first_50_updates(t
             got, want = read_scalar(tmp_path / "group" / f"seed{s}", name), read_scalar(alone, name)
             assert [f for f, _ in got] == [f for f, _ in want] and want, (s, name)
             assert [v for _, v in got] == pytest.approx([v for _, v in want], rel=1e-5, abs=1e-6)
+
+
+def test_a_group_with_normalised_heads_trains_each_seed_as_its_lone_run(tmp_path):
+    """learner.normalize_values divides each head by its own batch's magnitude: inside the
+    group's vmap that is each seed's batch, so a seed's losses are its lone run's."""
+    over = dict(variant="r+rf", learner=dict(normalize_values=True), total_frames=300)
+    SeedGroup(_group(tmp_path / "group", **over), toy_env).run()
+    train(tiny_config(tmp_path / "lone", seed=1, **over), toy_env)
+    grouped = read_scalar(tmp_path / "group" / "seed1", "train/loss_actor")
+    lone = read_scalar(tmp_path / "lone", "train/loss_actor")
+    assert len(grouped) >= 1
+    for (step_g, value_g), (step_l, value_l) in zip(grouped, lone, strict=True):
+        assert step_g == step_l and value_g == pytest.approx(value_l, rel=1e-4, abs=1e-5)
