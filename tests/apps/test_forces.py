@@ -77,6 +77,15 @@ def test_command_on_finger_spin_prints_the_rule_and_measures_in_newtons(capsys):
     assert result["force_scale"] == pytest.approx(4.06 / result["touching_max_median"])
 
 
+def test_command_on_walker_reads_the_feets_contact_forces(capsys):
+    result = forces.main(["dm_control:walker-walk", "--episodes", "1", "--reference-impact", "4"])
+    out = capsys.readouterr().out
+    assert "walker-walk" in out and "env.force_scale=" in out
+    assert result["steps"] == 1000 and result["contact_share"] > 0.1  # feet on the floor
+    # random actions stamp the feet: impacts of tens to hundreds of N (the walker weighs 280 N)
+    assert 10.0 < result["step_impact_median"] < result["touching_max_median"]
+
+
 def test_command_names_an_unknown_env():
     with pytest.raises(ValueError, match="no task finger-nope"):
         forces.main(["dm_control:finger-nope", "--episodes", "1", "--reference-impact", "1"])

@@ -46,11 +46,12 @@ class EnvConfig:
         "sensors, else contacts: MuJoCo's contact forces per env.force_groups; names: "
         "gentlerl.envs.external.FORCE_ADAPTERS)",
     )
-    force_groups: dict[str, Any] | None = setting(
-        None,
-        "contacts adapter: the force sites, group -> body or geom names summed into it, e.g. "
-        "{feet: [left_foot, right_foot]} (a body: its own geoms; subtree:NAME with its "
-        "children; geom:NAME one geom); given with force_adapter null, contacts is used; null: "
+    force_groups: dict[str, Any] = setting(
+        {},
+        "contacts adapter: the force sites, group -> body or geom names summed into it (on the "
+        "command line +env.force_groups.feet=[left_foot,right_foot]; a body: its own geoms; "
+        "subtree:NAME with its "
+        "children; geom:NAME one geom); given with force_adapter null, contacts is used; {}: "
         "the env's default (gentlerl.envs.contacts.CONTACT_GROUPS)",
     )
     force_key: str | None = setting(

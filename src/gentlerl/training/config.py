@@ -204,7 +204,7 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
         problems = [
             f"env.{name}={getattr(env, name)!r} applies to an external env only (set env.name)"
             for name in ("force_adapter", "force_groups", "observation_keys")
-            if getattr(env, name) is not None
+            if getattr(env, name) not in (None, {})
         ]
         if env.force_scale != 1.0:
             problems.append(
@@ -241,7 +241,7 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
             f"env.force_adapter={env.force_adapter!r} is not one of {sorted(FORCE_ADAPTERS)}"
         )
     elif not problems:  # the env exists: the groups' names are checked against its model
-        problems += group_problems(env.name, env.force_adapter, env.force_groups)
+        problems += group_problems(env.name, env.force_adapter, env.force_groups or None)
     keys = env.observation_keys
     if keys is not None and not keys:
         problems.append("env.observation_keys=[] must name at least one entry (or null: all)")
