@@ -148,6 +148,30 @@ def test_normal_and_total_force_on_an_incline_held_by_friction():
     assert len(geom1) == len(geom2) == env.data.ncon
 
 
+@pytest.mark.parametrize("component", ["normal", "total"])
+def test_group_sums_match_the_contact_by_contact_reading_on_walker(component):
+    """The loop of ``group_forces`` against numpy over every contact of a random walker run:
+    a contact counts once per group holding either of its geoms."""
+    from dm_control import suite
+
+    env = suite.load("walker", "walk", task_kwargs={"random": 0})
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    groups = {"r": ["right_foot"], "l": ["left_foot"], "feet": ["left_foot", "right_foot"]}
+    member = resolve_groups(model, groups | {"all": ["subtree:torso"], "floor": ["floor"]})
+    rng, seen = torch.Generator().manual_seed(0), 0
+    env.reset()
+    for _ in range(300):
+        env.step(torch.rand(6, generator=rng).numpy() * 2 - 1)
+        geom1, geom2, force = contact_forces(model, data, component)
+        expected = (member[geom1] | member[geom2]).T.astype(float) @ force
+        got = group_forces(model, data, member, component)
+        assert got == pytest.approx(expected, rel=1e-12, abs=1e-9)
+        seen += data.ncon
+    assert seen > 100
+    # the floor group holds every contact: the whole body's and the floor's sums agree
+    assert got[3] == pytest.approx(got[4]) and got[2] == pytest.approx(got[0] + got[1])
+
+
 def test_reset_writes_the_contacts_it_leaves_or_zeros():
     # box_a dropped from 1 m (4 ms steps): nothing of group "a" touches at the reset
     groups = ContactForces({"a": ["box_a"], "b": ["box_b"]})
