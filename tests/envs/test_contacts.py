@@ -263,3 +263,22 @@ def test_the_train_command_line_names_force_groups():
     assert cfg.env.force_groups == {"feet": ["left_foot", "right_foot"]}
     env = default_env_factory(cfg)()
     assert env.observation_spec["force"].shape == (1, 1)  # both feet summed into one site
+
+
+def test_the_loop_trains_on_gymnasium_hopper_with_contact_forces(tmp_path):
+    from gentlerl.training.loop import train
+
+    cfg = make_config(
+        variant="r+rf+rsp",
+        run_dir=str(tmp_path / "run"),
+        env={"name": "gym:Hopper-v5", "force_scale": 0.01},
+        collector={"total_frames": 120, "frames_per_batch": 40, "init_random_frames": 40},
+        replay={"batch_size": 8, "n_steps": 2},
+        gentleness={"reward_delay": 5, "model_batch_size": 8, "ensemble_size": 2},
+        network={"actor_hidden": [8], "critic_hidden": [8], "num_atoms": 11},
+        logging={"eval_every_frames": 120, "eval_episodes": 1, "progress": False},
+    )
+    summary = train(cfg)
+    # judged by its return (no success); a fall onto the foot is an impact (in N x 0.01)
+    assert "success_rate" not in summary and summary["max_impact_mean"] > 0.0
+    assert math.isfinite(summary["return"])
