@@ -282,3 +282,15 @@ def test_the_loop_trains_on_gymnasium_hopper_with_contact_forces(tmp_path):
     # judged by its return (no success); a fall onto the foot is an impact (in N x 0.01)
     assert "success_rate" not in summary and summary["max_impact_mean"] > 0.0
     assert math.isfinite(summary["return"])
+
+
+def test_every_default_group_names_its_envs_bodies():
+    from gentlerl.envs.external import mujoco_model
+
+    tasks = {"walker": "walk", "cheetah": "run", "hopper": "hop", "ball_in_cup": "catch"}
+    tasks |= {"humanoid": "walk", "quadruped": "walk"}
+    for key, groups in CONTACT_GROUPS.items():
+        source, model = key.split(":")
+        name = f"{key}-{tasks[model]}" if source == "dm_control" else f"{key}-v5"
+        member = resolve_groups(mujoco_model(name), groups)
+        assert member.any(0).all(), key  # each group holds a geom
