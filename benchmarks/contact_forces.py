@@ -18,7 +18,7 @@ import time
 import torch
 from torchrl.envs import Compose, TransformedEnv
 
-from gentlerl.envs.contacts import ContactForces, geom_sites, group_forces
+from gentlerl.envs.contacts import ContactForces, geom_groups, group_forces
 from gentlerl.envs.external import make_external_env
 
 
@@ -26,14 +26,14 @@ def _per_state(env: TransformedEnv, transform: ContactForces, steps: int) -> dic
     """Median us of ``group_forces`` and of ``transform._step`` over ``steps`` random states."""
     model, data = transform.handles()
     member = transform._membership(model)
-    sites = geom_sites(member)
+    lookup = geom_groups(member)
     td = env.reset()
     reads, writes, contacts = [], [], []
     for _ in range(steps):
         td = env.rand_step(td)
         nxt = td["next"]
         t0 = time.perf_counter()
-        group_forces(model, data, member, sites=sites)
+        group_forces(model, data, member, lookup=lookup)
         t1 = time.perf_counter()
         transform._step(td, nxt)
         t2 = time.perf_counter()

@@ -201,6 +201,8 @@ def test_group_names_are_checked_with_one_line_errors():
     env = TransformedEnv(_boxes(), ContactForces({"c": ["box_c"]}))
     with pytest.raises(ValueError, match="'box_c' is no body"):
         env.transform.bind()
+    with pytest.raises(ValueError, match=r"reads one simulator: append it to an unbatched env"):
+        ContactForces({"a": ["box_a"]}).transform_observation_spec(Composite(shape=(2,)))
 
 
 def test_walker_gets_its_feet_as_force_sites_and_passes_the_spec_check():

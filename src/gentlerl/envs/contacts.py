@@ -3,10 +3,11 @@ of envs without touch sensors (dm_control's walker, cheetah, ball_in_cup; Gymnas
 Walker2d, HalfCheetah, Ant, Humanoid).
 
 :class:`ContactForces` is a TorchRL transform. After the env's reset and after each step it reads
-the simulator's contacts (``mujoco.mj_contactForce`` of each of ``data.ncon``) and writes ``force`` ``[n_groups, 1]`` in N, the ``[n_sites, n_channels]`` layout that
+the simulator's contacts (``mujoco.mj_contactForce`` of each of ``data.ncon``) and writes
+``force`` ``[n_groups, 1]`` in N, the ``[n_sites, n_channels]`` layout that
 :class:`~gentlerl.transforms.ImpactPenalty` reads. It is the ``contacts`` force adapter of
 :data:`gentlerl.envs.external.FORCE_ADAPTERS` (``env.force_adapter=contacts``,
-``env.force_groups={feet: [left_foot, right_foot]}``); :data:`CONTACT_GROUPS` holds the groups an
+``+env.force_groups.feet=[left_foot,right_foot]``); :data:`CONTACT_GROUPS` holds the groups an
 env gets when none are named.
 
 Names (:func:`resolve_groups`): ``NAME`` or ``body:NAME`` is a body's own geoms, not its children's
@@ -41,7 +42,7 @@ FORCE = "force"
 #: What a contact's force is read as (:func:`contact_forces`).
 COMPONENTS = ("normal", "total")
 
-#: Each env's default groups (``env.force_groups`` null), keyed ``"<source>:<model>"``: the
+#: Each env's default groups (``env.force_groups`` empty), keyed ``"<source>:<model>"``: the
 #: dm_control domain, or the Gymnasium id without its version. Feet for the walkers and runners
 #: (the feet are what strikes the ground), the ball for ball_in_cup (the ball hitting the cup).
 CONTACT_GROUPS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -160,7 +161,7 @@ def contact_forces(
     return geom[:, 0], geom[:, 1], force
 
 
-def geom_sites(member: np.ndarray) -> list[tuple[int, ...]]:
+def geom_groups(member: np.ndarray) -> list[tuple[int, ...]]:
     """Per geom, the groups holding it (the rows of :func:`resolve_groups`' ``member``)."""
     return [tuple(np.flatnonzero(row).tolist()) for row in member]
 
@@ -171,10 +172,10 @@ def group_forces(
     member: np.ndarray,
     component: str = "normal",
     *,
-    sites: Sequence[tuple[int, ...]] | None = None,
+    lookup: Sequence[tuple[int, ...]] | None = None,
 ) -> np.ndarray:
     """``[n_groups]`` N: each group's summed contact force (:func:`contact_forces`), ``member``
-    from :func:`resolve_groups` (``sites``: its :func:`geom_sites`, computed once by a caller
+    from :func:`resolve_groups` (``lookup``: its :func:`geom_groups`, computed once by a caller
     that reads every step); a contact counts once per group holding either geom.
 
     A Python loop over the contacts, which reads ``mj_contactForce`` only for those touching a
@@ -183,14 +184,14 @@ def group_forces(
     cost ~20 us (measured side by side)."""
     if component not in COMPONENTS:
         raise ValueError(f"component must be one of {COMPONENTS}, got {component!r}")
-    sites = geom_sites(member) if sites is None else sites
+    of_geom = geom_groups(member) if lookup is None else lookup
     out = [0.0] * member.shape[1]
     if data.ncon == 0:
         return np.asarray(out)
     reading = np.zeros(6)
     normal = component == "normal"
     for i, (geom1, geom2) in enumerate(data.contact.geom.tolist()):
-        first, second = sites[geom1], sites[geom2]
+        first, second = of_geom[geom1], of_geom[geom2]
         if not (first or second):
             continue
         mujoco.mj_contactForce(model, data, i, reading)
@@ -236,7 +237,8 @@ class ContactForces(Transform):
     forces of the contacts in its zone), so an env read here is in the unit of the hand's and
     finger's touch sensors; friction adds a part bounded by ``mu`` times the normal that slides
     on without any strike (a foot scuffing the floor). ``component="total"`` reads the norm of
-    the whole contact force instead.
+    the whole contact force instead. One simulator: an unbatched env (a batch of envs appends
+    one to each).
 
     The reset writes the contacts the reset leaves (dm_control and Gymnasium run ``mj_forward``
     on a reset): cheetah starts resting on its feet, and zeros there would make its weight the
@@ -269,7 +271,7 @@ class ContactForces(Transform):
         self.component, self.reset_zeros, self._handles = component, reset_zeros, handles
         self._model: mujoco.MjModel | None = None
         self._member: np.ndarray | None = None
-        self._sites: list[tuple[int, ...]] = []
+        self._geom_groups: list[tuple[int, ...]] = []
         self._reader: Callable[[], tuple[mujoco.MjModel, mujoco.MjData]] | None = None
 
     @property
@@ -283,7 +285,7 @@ class ContactForces(Transform):
 
     def __getstate__(self) -> dict:
         state = super().__getstate__() if hasattr(super(), "__getstate__") else self.__dict__
-        return {**state, "_reader": None, "_model": None, "_member": None, "_sites": []}
+        return {**state, "_reader": None, "_model": None, "_member": None, "_geom_groups": []}
 
     def handles(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """``(MjModel, MjData)`` of the env this transform reads."""
@@ -305,14 +307,14 @@ class ContactForces(Transform):
     def _membership(self, model: mujoco.MjModel) -> np.ndarray:
         if model is not self._model:  # a new (recompiled) model: resolve the names again
             self._member, self._model = resolve_groups(model, self.groups), model
-            self._sites = geom_sites(self._member)
+            self._geom_groups = geom_groups(self._member)
         return self._member
 
     def read(self) -> torch.Tensor:
         """The force now, ``[n_groups, 1]`` float32 N."""
         model, data = self.handles()
         member = self._membership(model)
-        force = group_forces(model, data, member, self.component, sites=self._sites)
+        force = group_forces(model, data, member, self.component, lookup=self._geom_groups)
         return torch.as_tensor(force, dtype=torch.float32).unsqueeze(-1)
 
     def _write(self, tensordict: TensorDictBase, force: torch.Tensor) -> TensorDictBase:
@@ -325,14 +327,20 @@ class ContactForces(Transform):
     def _reset(
         self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase
     ) -> TensorDictBase:
-        force = self.read()
-        return self._write(tensordict_reset, torch.zeros_like(force) if self.reset_zeros else force)
+        if self.reset_zeros:
+            return self._write(tensordict_reset, torch.zeros(len(self.groups), 1))
+        return self._write(tensordict_reset, self.read())
 
     def _call(self, next_tensordict: TensorDictBase) -> TensorDictBase:
         return next_tensordict  # the force comes from the simulator, not from an entry
 
     def transform_observation_spec(self, observation_spec: Composite) -> Composite:
-        shape = (*observation_spec.shape, len(self.groups), 1)
+        if observation_spec.shape:
+            raise ValueError(
+                f"ContactForces reads one simulator: append it to an unbatched env (batch "
+                f"{tuple(observation_spec.shape)}), e.g. inside each env of a SerialEnv"
+            )
+        shape = (len(self.groups), 1)
         observation_spec[self.out_keys[0]] = Unbounded(
             shape, dtype=torch.float32, device=observation_spec.device
         )
