@@ -292,7 +292,22 @@ def test_every_default_group_names_its_envs_bodies():
     tasks = {"walker": "walk", "cheetah": "run", "hopper": "hop", "ball_in_cup": "catch"}
     tasks |= {"humanoid": "walk", "quadruped": "walk"}
     for key, groups in CONTACT_GROUPS.items():
-        source, model = key.split(":")
+        source, _, model = key.partition(":")
         name = f"{key}-{tasks[model]}" if source == "dm_control" else f"{key}-v5"
+        name = "manipulation:lift_brick_features" if source == "manipulation" else name
         member = resolve_groups(mujoco_model(name), groups)
         assert member.any(0).all(), key  # each group holds a geom
+
+
+def test_dm_control_manipulation_through_the_composer_source():
+    env = make_external_env("manipulation:lift_brick_features", seed=3)
+    again = make_external_env("manipulation:lift_brick_features", seed=3)
+    torch.testing.assert_close(env.reset()[keys.OBSERVATION], again.reset()[keys.OBSERVATION])
+    check_env_specs(env)
+    # the Jaco hand's three fingers; composer observables [1, n] flattened into observation
+    assert env.observation_spec["force"].shape == (3, 1) and env.time_limit == 250
+    assert env.observation_spec[keys.OBSERVATION].shape == (55,)
+    with pytest.raises(
+        ValueError, match="manipulation has no env lift_brik; known: \\['lift_brick"
+    ):
+        make_config(env={"name": "manipulation:lift_brik"})

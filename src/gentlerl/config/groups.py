@@ -36,8 +36,8 @@ class EnvConfig:
     name: str | None = setting(
         None,
         "null: gentlerl's hand, task `task`; else a TorchRL env, 'dm_control:<domain>-<task>' "
-        "or 'gym:<Gymnasium id>' (e.g. dm_control:finger-spin, gym:Hopper-v5; kwargs then go "
-        "to DMControlEnv / GymEnv)",
+        "'gym:<Gymnasium id>' or 'manipulation:<dm_control.manipulation name>' (e.g. "
+        "dm_control:finger-spin, gym:Hopper-v5; kwargs then go to DMControlEnv / GymEnv)",
     )
     force_adapter: str | None = setting(
         None,

@@ -43,7 +43,7 @@ FORCE = "force"
 COMPONENTS = ("normal", "total")
 
 #: Each env's default groups (``env.force_groups`` empty), keyed ``"<source>:<model>"``: the
-#: dm_control domain, or the Gymnasium id without its version. Feet for the walkers and runners
+#: dm_control domain, or the Gymnasium id without its version (or ``"<source>"``: all its envs). Feet for the walkers and runners
 #: (the feet are what strikes the ground), the ball for ball_in_cup (the ball hitting the cup).
 CONTACT_GROUPS: dict[str, dict[str, tuple[str, ...]]] = {
     "dm_control:walker": {"right_foot": ("right_foot",), "left_foot": ("left_foot",)},
@@ -67,6 +67,10 @@ CONTACT_GROUPS: dict[str, dict[str, tuple[str, ...]]] = {
         "right_back": ("geom:fourth_ankle_geom",),
     },
     "gym:Humanoid": {"right_foot": ("right_foot",), "left_foot": ("left_foot",)},
+    # every dm_control.manipulation env: the Jaco hand's three fingers, each with its tip
+    "manipulation": {
+        f"finger_{i}": (f"subtree:jaco_arm/jaco_hand/b_finger_{i}",) for i in (1, 2, 3)
+    },
 }
 
 
@@ -75,7 +79,7 @@ def default_groups(name: str) -> dict[str, tuple[str, ...]] | None:
     ``"gym:Hopper-v5"``), or ``None``."""
     source, _, spec = name.partition(":")
     model = spec.partition("-")[0]
-    return CONTACT_GROUPS.get(f"{source}:{model}")
+    return CONTACT_GROUPS.get(f"{source}:{model}", CONTACT_GROUPS.get(source))
 
 
 def _names(model: mujoco.MjModel, kind: mujoco.mjtObj, count: int) -> list[str | None]:

@@ -1,8 +1,9 @@
 """TorchRL envs that someone else wrote, made ready for the gentleness rewards and the loop.
 
 ``make_external_env("dm_control:finger-spin")`` is TorchRL's ``DMControlEnv("finger", "spin")``
-(``"gym:Hopper-v5"``: ``GymEnv("Hopper-v5")``, any Gymnasium id) with three transforms appended
-(:func:`adapt_env`):
+(``"gym:Hopper-v5"``: ``GymEnv("Hopper-v5")``, any Gymnasium id;
+``"manipulation:lift_brick_features"``: a dm_control manipulation env, :class:`ComposerEnv`) with
+three transforms appended (:func:`adapt_env`):
 
 1. ``DoubleToFloat``: dm_control writes float64 observations, rewards and actions; the agent's
    networks are float32, so everything is cast once, at the env's boundary.
@@ -16,13 +17,15 @@
    feet by default, :data:`~gentlerl.envs.contacts.CONTACT_GROUPS`).
 3. ``CatTensors`` of the env's observation keys (finger: ``position`` [4], ``velocity`` [3],
    ``touch`` [2]) into ``observation`` [9], the agent's input; the entries are kept, so the
-   dynamics model can predict each group.
+   dynamics model can predict each group (an entry of rank > 1, a composer observable
+   ``[1, n]``, is flattened first).
 
 Such an env has no ``success`` / ``broken``: the loop judges it by its return.
 """
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -31,8 +34,10 @@ from typing import TYPE_CHECKING
 import torch
 from torchrl.envs import (
     CatTensors,
+    DMControlWrapper,
     DoubleToFloat,
     EnvBase,
+    FlattenObservation,
     Transform,
     TransformedEnv,
     UnaryTransform,
@@ -107,6 +112,8 @@ FORCE_ADAPTERS: dict[str, ForceAdapter | None] = {
 SOURCES = {
     "dm_control": "'dm_control:<domain>-<task>', e.g. 'dm_control:finger-spin'",
     "gym": "'gym:<Gymnasium id>', e.g. 'gym:Hopper-v5'",
+    "manipulation": "'manipulation:<name>' (dm_control.manipulation), e.g. "
+    "'manipulation:lift_brick_features'",
 }
 
 
@@ -115,7 +122,7 @@ def parse_name(name: str) -> tuple[str, str]:
     ``("gym", "Hopper-v5")``; a ``ValueError`` saying the expected form otherwise."""
     source, _, spec = name.partition(":")
     domain, _, task = spec.partition("-")
-    if source not in SOURCES or not domain or not task:
+    if source not in SOURCES or not domain or not (task or source == "manipulation"):
         forms = " or ".join(SOURCES.values())
         raise ValueError(f"env.name={name!r} must read {forms}")
     return source, spec
@@ -128,6 +135,13 @@ def check_name(name: str) -> list[str]:
         source, spec = parse_name(name)
     except ValueError as err:
         return [str(err)]
+    if source == "manipulation":
+        from dm_control import manipulation
+
+        if spec in manipulation.ALL:
+            return []
+        near = sorted(n for n in manipulation.ALL if n.endswith("_features"))
+        return [f"env.name={name!r}: dm_control.manipulation has no env {spec}; known: {near}"]
     if source == "gym":
         import gymnasium
 
@@ -185,10 +199,11 @@ def mujoco_model(name: str) -> mujoco.MjModel:
         if model is None:
             raise TypeError(f"{spec} is no MuJoCo env")
         return model
-    from dm_control import suite
+    from dm_control import manipulation, suite
 
     domain, _, task = spec.partition("-")
-    return suite.load(domain, task).physics.model.ptr
+    env = manipulation.load(spec) if source == "manipulation" else suite.load(domain, task)
+    return copy.deepcopy(env.physics.model.ptr)  # the env's own dies with it (a weak proxy)
 
 
 def group_problems(
@@ -331,6 +346,14 @@ def adapt_env(
         else:
             transforms += adapter.build(adapter.source, force_key)
     if list(observation_keys) != [keys.OBSERVATION]:
+        by_rank: dict[int, list] = {}
+        for key in observation_keys:  # composer observables are [1, n] or [1, n, m]: flat
+            rank = len(spec[key].shape) - len(env.batch_size)
+            if rank > 1:
+                by_rank.setdefault(rank, []).append(key)
+        transforms += [
+            FlattenObservation(-rank, -1, in_keys=ranked) for rank, ranked in by_rank.items()
+        ]
         transforms.append(
             CatTensors(list(observation_keys), keys.OBSERVATION, del_keys=False, sort=False)
         )
@@ -382,9 +405,30 @@ class ExternalEnv(TransformedEnv):
     def time_limit(self) -> int | None:
         raw = getattr(self.base_env, "_env", None)
         limit = getattr(raw, "_step_limit", None)  # dm_control
-        if limit is None:  # Gymnasium's TimeLimit
+        if limit is None and isinstance(self.base_env, ComposerEnv):  # seconds
+            seconds = raw._time_limit
+            limit = round(seconds / raw.control_timestep()) if seconds != float("inf") else None
+        elif limit is None:  # Gymnasium's TimeLimit
             limit = getattr(getattr(raw, "spec", None), "max_episode_steps", None)
         return None if limit is None or limit == float("inf") else int(limit)
+
+
+class ComposerEnv(DMControlWrapper):
+    """TorchRL's ``DMControlWrapper`` around a dm_control *composer* env
+    (``dm_control.manipulation``), which TorchRL refuses by type (it takes suite envs only);
+    seeded through the env's own random state, which the composer hands to its task at each
+    episode."""
+
+    def _check_kwargs(self, kwargs: dict) -> None:
+        from dm_control import composer
+
+        if not isinstance(kwargs.get("env"), composer.Environment):
+            raise TypeError("ComposerEnv wraps a dm_control composer.Environment")
+
+    def _set_seed(self, seed: int | None) -> None:
+        if seed is not None:
+            self._env.random_state.seed(seed)
+            self.reset()
 
 
 def make_external_env(
@@ -411,6 +455,10 @@ def make_external_env(
         from torchrl.envs import GymEnv
 
         raw = GymEnv(spec, **kwargs)
+    elif source == "manipulation":
+        from dm_control import manipulation
+
+        raw = ComposerEnv(manipulation.load(spec), **kwargs)
     else:
         from torchrl.envs import DMControlEnv
 
