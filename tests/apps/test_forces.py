@@ -77,6 +77,34 @@ def test_command_on_finger_spin_prints_the_rule_and_measures_in_newtons(capsys):
     assert result["force_scale"] == pytest.approx(4.06 / result["touching_max_median"])
 
 
+def test_command_on_walker_reads_the_feets_contact_forces(capsys):
+    result = forces.main(["dm_control:walker-walk", "--episodes", "1", "--reference-impact", "4"])
+    out = capsys.readouterr().out
+    assert "walker-walk" in out and "env.force_scale=" in out
+    assert result["steps"] == 1000 and result["contact_share"] > 0.1  # feet on the floor
+    # random actions stamp the feet: impacts of tens to hundreds of N (the walker weighs 280 N)
+    assert 10.0 < result["step_impact_median"] < result["touching_max_median"]
+
+
+def test_command_measures_named_contact_groups_and_refuses_them_on_the_hand(capsys):
+    # Gymnasium's Hopper: random actions fall within a few dozen steps (short episodes)
+    argv = ["gym:Hopper-v5", "--episodes", "2", "--reference-impact", "4", "--json"]
+    foot = forces.main([*argv, "--group", "foot=foot"])
+    capsys.readouterr()
+    body = forces.main([*argv, "--group", "body=subtree:torso"])
+    # the same seeded episodes: the whole hopper touches at least as often as its foot
+    assert body["steps"] == foot["steps"] < 200
+    assert body["contact_share"] >= foot["contact_share"] > 0.0
+    with pytest.raises(
+        ValueError, match=r"'toes' is no body of the model; bodies: \['world', 'torso'"
+    ):
+        forces.main([*argv, "--group", "t=toes"])
+    with pytest.raises(ValueError, match="--group names the contact force sites of an external"):
+        forces.main(["touch", "--episodes", "1", "--group", "f=ff_distal"])
+    with pytest.raises(SystemExit):
+        forces.main([*argv, "--group", "feet"])
+
+
 def test_command_names_an_unknown_env():
     with pytest.raises(ValueError, match="no task finger-nope"):
         forces.main(["dm_control:finger-nope", "--episodes", "1", "--reference-impact", "1"])

@@ -228,7 +228,7 @@ def test_config_names_the_external_env_and_validates_its_fields():
         make_config(env=bad)
     assert "no task finger-fly; known: ['finger-spin', 'finger-turn_easy'" in str(err.value)
     assert "env.force_adapter='nope' is not one of" in str(err.value)
-    with pytest.raises(ValueError, match="must read '<source>:<domain>-<task>'"):
+    with pytest.raises(ValueError, match="must read 'dm_control:<domain>-<task>'.* or 'gym:<"):
         make_config(env={"name": "finger-spin"})
     with pytest.raises(ValueError, match="applies to an external env only"):
         make_config(env={"force_adapter": "dm_control_touch"})

@@ -2,7 +2,9 @@
 ``gentlerl forces ENV [--episodes N] [--policy CHECKPOINT]``.
 
 ``ENV`` is a hand task (``touch``, ``fragile``, ...) or an external env
-(``dm_control:finger-spin``). Under uniform random actions (or a saved policy's noise-free actor)
+(``dm_control:finger-spin``, ``dm_control:walker-walk``, ``gym:Hopper-v5``; ``--group
+feet=left_foot,right_foot`` names the contact force sites of an env read through MuJoCo's
+contacts). Under uniform random actions (or a saved policy's noise-free actor)
 it prints, in the env's own newtons: the share of steps with contact, the per-step impact
 (paper eq. 1, the largest over the sensor sites) over contact steps, the per-episode max impact
 and the per-episode impact penalty (eq. 4, lambda = [2, 2]), as quantiles; then the
@@ -101,9 +103,17 @@ def tolerance_force_scale(env_impact: float, reference_impact: float) -> float:
     return float(reference_impact) / float(env_impact)
 
 
-def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = None) -> list:
+def measure(
+    env_name: str,
+    episodes: int,
+    seed: int = 0,
+    policy: str | None = None,
+    force_groups: dict[str, list[str]] | None = None,
+) -> list:
     """``episodes`` rollouts (``[T]`` tensordicts with ``impact`` in N) on ``env_name``: random
-    actions, or the noise-free actor of the checkpoint ``policy`` (its run's env, in newtons)."""
+    actions, or the noise-free actor of the checkpoint ``policy`` (its run's env, in newtons).
+    ``force_groups``: an external env's contact force sites (the ``contacts`` adapter's groups,
+    :func:`~gentlerl.envs.contacts.resolve_groups`), random actions only."""
     from gentlerl.training.builders import default_env_factory
     from gentlerl.training.evaluation import (
         MAX_EPISODE_STEPS,
@@ -114,6 +124,11 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
     )
 
     check_episodes(episodes)
+    if force_groups is not None and (policy is not None or env_name in TASKS):
+        raise ValueError(
+            "--group names the contact force sites of an external env under random actions; a "
+            "hand task reads its touch sensors, a policy its run's env.force_groups"
+        )
     actor = None
     if policy is not None:
         from gentlerl.training.checkpoint import load_checkpoint, policy_from_state
@@ -138,7 +153,8 @@ def measure(env_name: str, episodes: int, seed: int = 0, policy: str | None = No
         problems = check_name(env_name)
         if problems:
             raise ValueError(f"ENV {env_name!r}: {problems[0]} (or a hand task: {list(TASKS)})")
-        factory, force_key = partial(make_external_env, env_name, seed=seed), FORCE
+        factory = partial(make_external_env, env_name, seed=seed, force_groups=force_groups)
+        force_key = FORCE
     env = make_eval_env(factory, seed, force_key=force_key)
     torch.manual_seed(seed)
     try:
@@ -160,7 +176,16 @@ def _row(name: str, p: dict[str, float]) -> str:
 
 def main(argv: Sequence[str] | None = None, prog: str = "gentlerl forces") -> dict[str, float]:
     parser = command_parser(prog, __doc__.splitlines()[0])
-    parser.add_argument("env", help="a hand task or an external env (dm_control:DOMAIN-TASK)")
+    parser.add_argument(
+        "env", help="a hand task or an external env (dm_control:DOMAIN-TASK, gym:ID)"
+    )
+    parser.add_argument(
+        "--group",
+        action="append",
+        metavar="NAME=BODY[,BODY...]",
+        help="an external env's contact force site: the bodies (geom:NAME, subtree:NAME) whose "
+        "contact forces it sums; repeat for several (default: the env's, e.g. walker's feet)",
+    )
     parser.add_argument("--episodes", type=int, default=20, help="episodes to measure")
     parser.add_argument("--seed", type=int, default=0, help="seed of the env and the actions")
     parser.add_argument("--policy", help="a checkpoint whose actor acts instead of random actions")
@@ -171,7 +196,15 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl forces") -> di
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
-    rollouts = measure(args.env, args.episodes, args.seed, args.policy)
+    groups = None
+    if args.group:
+        groups = {}
+        for item in args.group:
+            name, _, bodies = item.partition("=")
+            if not name or not bodies:
+                parser.error(f"--group {item!r} must read NAME=BODY[,BODY...]")
+            groups[name] = bodies.split(",")
+    rollouts = measure(args.env, args.episodes, args.seed, args.policy, groups)
     profile = force_profile(rollouts)
     reference = args.reference_impact
     if reference is None:
@@ -191,6 +224,15 @@ def main(argv: Sequence[str] | None = None, prog: str = "gentlerl forces") -> di
         return result
     source = "random actions" if args.policy is None else args.policy
     print(f"{args.env}: {profile['episodes']} episodes, {profile['steps']} steps, {source}, N")
+    if args.policy is None and args.env not in TASKS:
+        from gentlerl.envs.contacts import default_groups
+
+        sites = groups or default_groups(args.env)
+        if sites is not None:
+            print(
+                "sites (MuJoCo contacts): "
+                + "; ".join(f"{k}={','.join(v)}" for k, v in sites.items())
+            )
     print(
         f"{'':<26} {'contact':>7} {'step m50':>8} {'step m90':>8} {'ep max50':>8} "
         f"{'ep max90':>8} {'touch50':>8} {'r^f / ep':>10}"

@@ -36,13 +36,23 @@ class EnvConfig:
     name: str | None = setting(
         None,
         "null: gentlerl's hand, task `task`; else a TorchRL env, 'dm_control:<domain>-<task>' "
-        "(e.g. dm_control:finger-spin; kwargs then go to DMControlEnv)",
+        "'gym:<Gymnasium id>' or 'manipulation:<dm_control.manipulation name>' (e.g. "
+        "dm_control:finger-spin, gym:Hopper-v5; kwargs then go to DMControlEnv / GymEnv)",
     )
     force_adapter: str | None = setting(
         None,
         "transforms bringing an external env's contact reading to force_key in N, "
-        "[n_sites, n_channels] (null: the source's, dm_control_touch for dm_control; "
-        "names: gentlerl.envs.external.FORCE_ADAPTERS)",
+        "[n_sites, n_channels] (null: dm_control_touch for a dm_control env with touch "
+        "sensors, else contacts: MuJoCo's contact forces per env.force_groups; names: "
+        "gentlerl.envs.external.FORCE_ADAPTERS)",
+    )
+    force_groups: dict[str, Any] = setting(
+        {},
+        "contacts adapter: the force sites, group -> body or geom names summed into it (on the "
+        "command line +env.force_groups.feet=[left_foot,right_foot]; a body: its own geoms; "
+        "subtree:NAME with its "
+        "children; geom:NAME one geom); given with force_adapter null, contacts is used; {}: "
+        "the env's default (gentlerl.envs.contacts.CONTACT_GROUPS)",
     )
     force_key: str | None = setting(
         None, "the force entry the gentleness rewards read (null: touch for the hand, else force)"

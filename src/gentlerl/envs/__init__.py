@@ -15,6 +15,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "gentlerl.envs.batched": ("BatchedHandEnv",),
+        "gentlerl.envs.contacts": ("ContactForces",),
         "gentlerl.envs.driver": ("DriverSpec", "HandDriver", "HandReading"),
         "gentlerl.envs.driver_env": ("DriverHandEnv",),
         "gentlerl.envs.environment": ("HandEnvironment",),

@@ -63,6 +63,7 @@ def default_env_factory(cfg: TrainConfig) -> EnvFactory:
             force_key=env.force,
             observation_keys=env.observation_keys,
             force_scale=env.force_scale,
+            force_groups=env.force_groups or None,
             **env.kwargs,
         )
     from gentlerl.envs import make_env

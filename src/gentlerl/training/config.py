@@ -226,6 +226,7 @@ def _ray_problems(cfg: TrainConfig) -> list[str]:
 def _env_problems(cfg: TrainConfig) -> list[str]:
     """``env.kwargs`` the hand's task accepts (listing the valid ones), ``env.name`` (a known
     external env, its keywords that would fail only later), ``env.force_adapter``,
+    ``env.force_groups`` (names the env's model has),
     ``env.observation_keys`` (each once) and ``env.force_scale`` (only with an external env; the
     adapter a known one). The env modules (MuJoCo, TorchRL) are imported only to check what
     needs them: task keywords, an external env."""
@@ -233,8 +234,8 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
     if env.name is None:
         problems = [
             f"env.{name}={getattr(env, name)!r} applies to an external env only (set env.name)"
-            for name in ("force_adapter", "observation_keys")
-            if getattr(env, name) is not None
+            for name in ("force_adapter", "force_groups", "observation_keys")
+            if getattr(env, name) not in (None, {})
         ]
         if env.force_scale != 1.0:
             problems.append(
@@ -258,13 +259,20 @@ def _env_problems(cfg: TrainConfig) -> list[str]:
                     f"env.kwargs {unknown} are not keywords of task {cfg.task!r}; valid: {valid}"
                 )
         return problems
-    from gentlerl.envs.external import FORCE_ADAPTERS, check_name, kwargs_problems
+    from gentlerl.envs.external import (
+        FORCE_ADAPTERS,
+        check_name,
+        group_problems,
+        kwargs_problems,
+    )
 
     problems = check_name(env.name) + kwargs_problems(env.kwargs)  # they go to the external env
     if env.force_adapter is not None and env.force_adapter not in FORCE_ADAPTERS:
         problems.append(
             f"env.force_adapter={env.force_adapter!r} is not one of {sorted(FORCE_ADAPTERS)}"
         )
+    elif not problems:  # the env exists: the groups' names are checked against its model
+        problems += group_problems(env.name, env.force_adapter, env.force_groups or None)
     keys = env.observation_keys
     if keys is not None and not keys:
         problems.append("env.observation_keys=[] must name at least one entry (or null: all)")
