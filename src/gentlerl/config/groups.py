@@ -225,7 +225,8 @@ class NetworkConfig:
     derive_support: bool | None = setting(
         None,
         "size the task head's support from env.reward_bounds, learner.gamma and the episode "
-        "length, with 10 % headroom (null: derived for an external env, v_min/v_max for the hand)",
+        "length, with 10 % headroom (null: derived for an external env whose reward bounds are "
+        "known, dm_control's or env.reward_bounds; else v_min/v_max)",
     )
     v_min: float = setting(-10.0, "bottom of every head's support")
     v_max: float = setting(10.0, "top of every head's support")

@@ -199,10 +199,15 @@ def mujoco_model(name: str) -> mujoco.MjModel:
         if model is None:
             raise TypeError(f"{spec} is no MuJoCo env")
         return model
-    from dm_control import manipulation, suite
+    if source == "manipulation":  # composer: imported only where asked (its imports are heavy)
+        from dm_control import manipulation
 
-    domain, _, task = spec.partition("-")
-    env = manipulation.load(spec) if source == "manipulation" else suite.load(domain, task)
+        env = manipulation.load(spec)
+    else:
+        from dm_control import suite
+
+        domain, _, task = spec.partition("-")
+        env = suite.load(domain, task)
     return copy.deepcopy(env.physics.model.ptr)  # the env's own dies with it (a weak proxy)
 
 

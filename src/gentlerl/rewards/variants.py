@@ -269,8 +269,14 @@ SOURCE_REWARD_BOUNDS: dict[str, tuple[float, float]] = {"dm_control": (0.0, 1.0)
 
 def derives_support(env: EnvConfig, network: NetworkConfig) -> bool:
     """Whether the task head's support is derived (:func:`derived_support`):
-    ``network.derive_support``, or where it is null, for an external env."""
-    return env.name is not None if network.derive_support is None else network.derive_support
+    ``network.derive_support``, or where it is null, for an external env whose reward bounds
+    are known (``env.reward_bounds``, or its source's)."""
+    if network.derive_support is not None:
+        return network.derive_support
+    source = None if env.name is None else env.name.partition(":")[0]
+    return env.name is not None and (
+        env.reward_bounds is not None or source in SOURCE_REWARD_BOUNDS
+    )
 
 
 def task_reward_bounds(env: EnvConfig) -> tuple[float, float]:
