@@ -1,6 +1,7 @@
 """Method IV's pre-registered verdict (docs/RESULTS.md, 2026-12-07) and its return-vs-impact plots.
 
     python experiments/method4/verdict.py RESULTS.csv [RESULTS.csv ...] [--plots DIR]
+        [--curves RUNS_DIR]
 
 Per task (a task's loose and tight tolerances, ``<task>-loose`` / ``<task>-tight``, are points
 of the same task's curve): the median over seeds of each run's mean return and of its max impact
@@ -162,12 +163,50 @@ def plot(rows: Sequence[Mapping[str, Any]], out: Path) -> list[Path]:
     return written
 
 
+#: The curves of a run that show why a cell ended where it did: its evaluations and multiplier.
+CURVES = ("eval/success_rate", "eval/max_impact_mean", "eval/return", "train/lagrange_multiplier")
+
+
+def curves(runs: Path, out: Path) -> list[Path]:
+    """One figure per cell of a suite's run folder (``runs/<task>/<variant>/seed<k>``): each
+    seed's :data:`CURVES` against the env steps; a curve a run did not log is left out."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from gentlerl.analysis.runs import load_run
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for cell in sorted(p for p in runs.glob("*/*") if p.is_dir()):
+        fig, axes = plt.subplots(1, len(CURVES), figsize=(4 * len(CURVES), 3))
+        for seed in sorted(cell.glob("seed*")):
+            scalars = load_run(seed).scalars
+            for ax, name in zip(axes, CURVES, strict=True):
+                if name in scalars:
+                    ax.plot(*scalars[name], label=seed.name)
+                ax.set_title(name, fontsize=9)
+        axes[0].legend(fontsize=7)
+        fig.suptitle(f"{cell.parent.name}/{cell.name}")
+        fig.tight_layout()
+        path = out / f"{cell.parent.name}_{cell.name}.png"
+        fig.savefig(path, dpi=80)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
 def main(argv: Sequence[str] | None = None) -> str:
     args = list(sys.argv[1:] if argv is None else argv)
-    plots = None
+    plots = runs = None
     if "--plots" in args:
         i = args.index("--plots")
         plots = Path(args[i + 1])
+        del args[i : i + 2]
+    if "--curves" in args:  # --curves RUNS_DIR: the cells' learning curves, into --plots
+        i = args.index("--curves")
+        runs = Path(args[i + 1])
         del args[i : i + 2]
     if not args:
         sys.exit("usage: python experiments/method4/verdict.py RESULTS.csv [...] [--plots DIR]")
@@ -176,6 +215,8 @@ def main(argv: Sequence[str] | None = None) -> str:
     print(text, end="")
     if plots is not None:
         plot(rows, plots)
+        if runs is not None:
+            curves(runs, plots)
     return text
 
 
