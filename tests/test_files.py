@@ -90,3 +90,45 @@ def test_gentlerl_train_through_a_planted_lock_link_writes_nothing(tmp_path):
     assert "symbolic link" in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
     assert victim.read_text() == "precious\n"
     assert sorted(p.name for p in run.iterdir()) == [".lock"]
+
+
+def _planted_folder(tmp_path):
+    """A folder elsewhere and a link to it where a run's folder would be made."""
+    victim = tmp_path / "elsewhere"
+    victim.mkdir()
+    return victim
+
+
+@pytest.mark.parametrize("command", ["train", "seeds", "suite"])
+def test_a_run_folder_that_is_itself_a_link_is_refused_before_anything_is_written(
+    tmp_path, capsys, command
+):
+    """The finding: a seed folder planted as a link made ``gentlerl seeds``, ``train`` and ``suite
+    run`` write checkpoint, config, logs and DONE into its target, outside ``--out``."""
+    from gentlerl import cli
+    from gentlerl.training import make_config, train
+    from tests.helpers import TINY, toy_env
+
+    victim = _planted_folder(tmp_path)
+    if command == "train":
+        (tmp_path / "run").symlink_to(victim)
+        cfg = make_config("cpu", **TINY, run_dir=str(tmp_path / "run"))
+        with pytest.raises(LinkRefusedError, match=r"run_dir='.*run' is a symbolic link: a run"):
+            train(cfg, toy_env)
+    elif command == "seeds":
+        (tmp_path / "g").mkdir()
+        (tmp_path / "g" / "seed1").symlink_to(victim)
+        assert cli.main(["seeds", "0", "1", "--out", str(tmp_path / "g")]) == 1
+        err = capsys.readouterr().err
+        assert "seed1' is a symbolic link: a run writes only into folders it makes" in err
+        assert err.count("\n") == 1 and not (tmp_path / "g" / "seed0").exists()
+    else:
+        from gentlerl.apps.suite import SuiteRefused, plan_suite
+        from gentlerl.apps.suite_files import load_suite
+        from tests.apps.test_suite import EXAMPLE
+
+        (tmp_path / "out" / "toy" / "r").mkdir(parents=True)
+        (tmp_path / "out" / "toy" / "r" / "seed0").symlink_to(victim)
+        with pytest.raises(SuiteRefused, match="seed0' is a symbolic link: a run writes only"):
+            plan_suite(load_suite(EXAMPLE), tmp_path / "out")
+    assert list(victim.iterdir()) == []

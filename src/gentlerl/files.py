@@ -88,6 +88,18 @@ def links_under(root: str | os.PathLike, limit: int = 100_000) -> list[Path]:
     return found
 
 
+def folder_link_problem(path: str | os.PathLike, name: str = "run_dir") -> str | None:
+    """Why the folder ``path`` cannot take a run's files: it is itself a symbolic link (a planted
+    seed folder or cell pointing elsewhere); ``None`` when it is not. Checked before anything is
+    written, by the run lock, seed groups and suites."""
+    if os.path.islink(path):
+        return (
+            f"{name}={os.fspath(path)!r} is a symbolic link: a run writes only into folders it "
+            f"makes, never through a link; remove it or choose another {name}"
+        )
+    return None
+
+
 class _NoAliasLoader(yaml.SafeLoader):
     """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed and reads
     only ``true`` / ``false`` as booleans (YAML 1.2's core schema): YAML 1.1's ``yes``, ``no``,

@@ -5,7 +5,8 @@ and overwrite each other's checkpoints. The lock file names its holder (pid and 
 second one is refused in one line saying who holds it. ``flock`` is released by the kernel when
 the holder dies, so a lock left by a killed run is stale and the next run takes it over.
 
-A run writes only files it makes: a symbolic link in the run directory (planted, say, as
+A run writes only files it makes: a run directory that is itself a symbolic link, or a symbolic
+link in the run directory (planted, say, as
 ``.lock`` or ``config.yaml`` pointing at a file elsewhere) is refused before anything is written.
 """
 
@@ -17,7 +18,7 @@ import socket
 from pathlib import Path
 
 from gentlerl.config.layout import RunLayout
-from gentlerl.files import LinkRefusedError, links_under
+from gentlerl.files import LinkRefusedError, folder_link_problem, links_under
 
 
 class RunLockedError(OSError):
@@ -41,6 +42,8 @@ class RunLock:
 
     def acquire(self) -> RunLock:
         run_dir = self.path.parent
+        if problem := folder_link_problem(run_dir):
+            raise LinkRefusedError(problem)
         self._made = [d for d in (run_dir, *run_dir.parents) if not d.exists()]
         run_dir.mkdir(parents=True, exist_ok=True)
         self._refuse_links(run_dir)
