@@ -141,3 +141,14 @@ def test_a_learning_rate_changed_on_resume_is_applied_to_the_optimisers(saved):
     state = _state(saved)  # the moments themselves are the checkpoint's
     got = resumed.learner.optimizer.state_dict()["state"][0]["exp_avg"][0]
     assert torch.equal(got, state["learner"]["optimizer"]["state"][0]["exp_avg"])
+
+
+def test_a_checkpoint_without_its_config_is_one_line_naming_the_file(saved, tmp_path):
+    from gentlerl.training.guards import load_resume_state
+
+    state = _state(saved)
+    del state["config"]
+    save_checkpoint(tmp_path / "checkpoint.pt", state)
+    cfg = tiny_config(tmp_path, total_frames=500, resume=True)
+    with pytest.raises(ValueError, match=r"checkpoint.pt: it lacks its config \(a mapping\)"):
+        load_resume_state(cfg, tmp_path / "checkpoint.pt")

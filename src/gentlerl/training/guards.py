@@ -91,6 +91,8 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
             )
         return None
     state = load_checkpoint(checkpoint)
+    if not isinstance(state.get("config"), dict):
+        raise ValueError(f"{checkpoint}: it lacks its config (a mapping); it cannot be resumed")
     changes = config_changes(group_flat_config(state["config"]), cfg.to_dict())
     structural = [n for n in changes if n not in SAFE_TO_CHANGE]
     if structural:
@@ -108,7 +110,7 @@ def finished_summary(state: Mapping[str, Any], done_marker: Path, cfg: Any) -> d
     if state["counters"]["frames"] < cfg.collector.total_frames:
         done_marker.unlink(missing_ok=True)
         return None
-    if not done_marker.exists():
+    if not done_marker.exists() or not state["eval_history"]:
         return None
     last = state["eval_history"][-1]
     print(
