@@ -132,3 +132,94 @@ def test_a_run_folder_that_is_itself_a_link_is_refused_before_anything_is_writte
         with pytest.raises(SuiteRefused, match="seed0' is a symbolic link: a run writes only"):
             plan_suite(load_suite(EXAMPLE), tmp_path / "out")
     assert list(victim.iterdir()) == []
+
+
+def _hostile_file(tmp_path, kind, name="hostile"):
+    """A path that is a link to a real file, a FIFO, a link to /dev/zero or a 2 GiB sparse file."""
+    path = tmp_path / name
+    if kind == "link":
+        (tmp_path / "real").write_text("a: 1\n")
+        path.symlink_to(tmp_path / "real")
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "dev-zero":
+        path.symlink_to("/dev/zero")
+    else:
+        with open(path, "wb") as f:
+            f.truncate(2 << 30)  # sparse: no disk, but 2 GiB to a reader that reads it
+    return path
+
+
+KINDS = {
+    "link": "is a symbolic link: gentlerl reads no file through a link",
+    "fifo": "is a FIFO, not a regular file",
+    "dev-zero": "is a symbolic link",
+    "sparse": "is 2,147,483,648 bytes, over the",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_open_checked_refuses_by_fstat_before_reading(tmp_path, kind):
+    from gentlerl.files import FileRefusedError, open_checked, read_checked
+
+    path = _hostile_file(tmp_path, kind)
+    with pytest.raises(FileRefusedError, match=f"{path} {KINDS[kind]}"):
+        read_checked(path)
+    if kind == "sparse":  # no cap: the reader's choice
+        open_checked(path, cap=None).close()
+    (tmp_path / "zero").symlink_to("/dev/zero")
+    with pytest.raises(FileRefusedError, match="is a symbolic link"):
+        open_checked(tmp_path / "zero")
+
+
+def _read_with(reader, path):
+    from gentlerl.analysis.claims import load_final_evals
+    from gentlerl.analysis.results import read_results
+    from gentlerl.apps.suite_files import load_suite
+    from gentlerl.apps.sweep_files import load_sweep
+    from gentlerl.training.checkpoint import load_checkpoint
+    from gentlerl.training.guards import _history
+
+    if reader == "final_evals":
+        return load_final_evals(path.parent)
+    if reader == "run config (plot)":
+        from gentlerl.analysis.runs import load_run
+
+        return load_run(path.parent)
+    return {
+        "sweep": load_sweep, "suite": load_suite, "results (table)": read_results,
+        "checkpoint": load_checkpoint, "config history": _history,
+    }[reader](path)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "reader",
+    [
+        "sweep",
+        "suite",
+        "results (table)",
+        "checkpoint",
+        "config history",
+        "final_evals",
+        "run config (plot)",
+    ],
+)
+@pytest.mark.parametrize("kind", ["fifo", "sparse", "dev-zero"])
+def test_every_reader_refuses_a_fifo_a_device_and_a_huge_file_unread(tmp_path, reader, kind):
+    """The findings: a 2 GiB sparse file cost 4.2 GB in sweep, suite, plot and the method3 table;
+    /dev/zero links 7-8 GB; a FIFO hung."""
+    import resource
+
+    folder = tmp_path / "hostile"
+    folder.mkdir()
+    name = {"final_evals": "final_eval.jsonl", "run config (plot)": "config.yaml"}.get(reader, "f")
+    path = _hostile_file(folder, kind, name)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises((OSError, ValueError)) as err:
+        _read_with(reader, path)
+    assert "\n" not in str(err.value) and "hostile" in str(err.value)
+    # a checkpoint has no size cap (a paper-scale one holds its replay): torch reads its header
+    expected = [*KINDS.values(), *(["cannot read checkpoint"] if reader == "checkpoint" else [])]
+    assert any(fragment in str(err.value) for fragment in expected), str(err.value)
+    grown_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    assert grown_kib < 200_000  # nothing of the 2 GiB was read

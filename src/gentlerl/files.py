@@ -1,5 +1,5 @@
-"""Writing files without following symbolic links that gentlerl did not make; reading YAML
-without aliases.
+"""Writing and reading files without following symbolic links that gentlerl did not make;
+reading YAML without aliases.
 
 gentlerl never makes a symbolic link. A link planted where a run writes (``run_dir/.lock`` ->
 a file elsewhere) would make an ordinary write truncate or overwrite its target, so:
@@ -11,6 +11,12 @@ a file elsewhere) would make an ordinary write truncate or overwrite its target,
 - :func:`links_under` lists the links inside a folder (a run directory is checked when a run
   takes it, :class:`~gentlerl.training.run_lock.RunLock`).
 
+Every file gentlerl reads goes through :func:`open_checked` (:func:`read_checked` for its whole
+text, :func:`load_yaml_file` for YAML): opened without following a link (``O_NOFOLLOW``) and
+without blocking (a FIFO would hang the reader), then refused by ``fstat`` *before* any byte is
+read when it is not a regular file (a FIFO, ``/dev/zero``, a folder) or is larger than the
+reader's cap; each refusal one line naming the file (:class:`FileRefusedError`).
+
 gentlerl writes YAML (``config.yaml``, sweep files) without anchors, and :func:`load_yaml` refuses
 an alias (``*name``): a few hundred bytes of nested aliases expand to billions of values in
 whatever walks them (a "billion laughs"), and no file of gentlerl's needs one.
@@ -19,8 +25,10 @@ whatever walks them (a "billion laughs"), and no file of gentlerl's needs one.
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -100,6 +108,83 @@ def folder_link_problem(path: str | os.PathLike, name: str = "run_dir") -> str |
     return None
 
 
+class FileRefusedError(OSError):
+    """A file gentlerl will not read: a symbolic link, not a regular file, or over the reader's
+    cap (found by ``fstat`` before reading); the message names it, on one line."""
+
+
+#: The largest YAML file gentlerl reads (its configs and sweep files are a few KB).
+MAX_YAML_BYTES = 1 << 20
+#: The largest CSV, JSON or log file gentlerl reads (a paper-scale run's largest log is a few MB).
+MAX_TEXT_BYTES = 256 << 20
+
+_KINDS = (
+    (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
+)  # fmt: skip
+
+
+def open_checked(
+    path: str | os.PathLike,
+    cap: int | None = MAX_TEXT_BYTES,
+    *,
+    binary: bool = False,
+    newline: str | None = None,
+    errors: str | None = None,
+) -> IO:
+    """``path`` opened to read (text, or bytes with ``binary``), refused before any byte is read
+    when it is a symbolic link, not a regular file, or over ``cap`` bytes (``None``: no cap).
+
+    Raises:
+        FileNotFoundError: no file at ``path``.
+        FileRefusedError: the refusals above, one line naming ``path``.
+    """
+    name = os.fspath(path)
+    flags = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise FileRefusedError(
+                f"{name} is a symbolic link: gentlerl reads no file through a link it did not "
+                "make; give the file itself"
+            ) from None
+        raise
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            kind = next((k for test, k in _KINDS if test(info.st_mode)), "not a regular file")
+            raise FileRefusedError(
+                f"{name} is {kind}, not a regular file: gentlerl reads only files"
+            )
+        if cap is not None and info.st_size > cap:
+            raise FileRefusedError(
+                f"{name} is {info.st_size:,} bytes, over the {cap:,} this reader takes: not a "
+                "file gentlerl wrote"
+            )
+        fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
+    except BaseException:
+        os.close(fd)
+        raise
+    if binary:
+        return os.fdopen(fd, "rb")
+    return os.fdopen(fd, "r", newline=newline, errors=errors, encoding="utf-8")
+
+
+def read_checked(
+    path: str | os.PathLike, cap: int | None = MAX_TEXT_BYTES, *, errors: str | None = None
+) -> str:
+    """The text of ``path`` (UTF-8), through :func:`open_checked`; at most ``cap`` bytes are read
+    even when the file grows while it is read."""
+    with open_checked(path, cap, binary=True) as f:
+        data = f.read() if cap is None else f.read(cap + 1)
+    if cap is not None and len(data) > cap:
+        raise FileRefusedError(
+            errno.EFBIG, f"{os.fspath(path)} grew over {cap:,} bytes as it was read"
+        )
+    return data.decode("utf-8", errors=errors or "strict")
+
+
 class _NoAliasLoader(yaml.SafeLoader):
     """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed and reads
     only ``true`` / ``false`` as booleans (YAML 1.2's core schema): YAML 1.1's ``yes``, ``no``,
@@ -124,13 +209,15 @@ _NoAliasLoader.add_implicit_resolver(
 )
 
 
-#: The largest YAML file gentlerl reads (its configs and sweep files are a few KB).
-MAX_YAML_BYTES = 1 << 20
-
-
 def load_yaml(text: str) -> Any:
     """``yaml.safe_load(text)`` with aliases refused and at most :data:`MAX_YAML_BYTES` of text;
     both raise ``yaml.YAMLError`` (the callers' "not valid YAML" line)."""
     if len(text) > MAX_YAML_BYTES:
         raise yaml.YAMLError(f"{len(text):,} characters, over the {MAX_YAML_BYTES:,} read")
     return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506 - a SafeLoader subclass
+
+
+def load_yaml_file(path: str | os.PathLike, *, errors: str | None = None) -> Any:
+    """:func:`load_yaml` of the file ``path``, read through :func:`read_checked` with the cap
+    :data:`MAX_YAML_BYTES` (a link, a FIFO, ``/dev/zero`` or a large file: refused unread)."""
+    return load_yaml(read_checked(path, MAX_YAML_BYTES, errors=errors))

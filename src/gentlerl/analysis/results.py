@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from gentlerl.analysis.runs import final_eval_episodes, load_run
-from gentlerl.files import write_atomic
+from gentlerl.files import open_checked, write_atomic
 
 #: The results file's columns, in order: which run (suite, cell = task/variant, seed), how long
 #: it trained (frames), its final evaluation (mean return, success and broken rates, mean of the
@@ -128,7 +128,7 @@ def read_results(path: str | Path) -> list[dict[str, Any]]:
     naming the file (and line) when a column is missing, a number is not one, or a run
     (suite, cell, seed) appears twice."""
     path = Path(path)
-    with path.open(newline="", errors="replace") as f:
+    with open_checked(path, newline="", errors="replace") as f:
         reader = csv.DictReader(f)
         missing = [c for c in RESULT_COLUMNS if c not in (reader.fieldnames or ())]
         if missing:

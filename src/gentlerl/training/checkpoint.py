@@ -22,7 +22,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.data import ReplayBuffer
 
 from gentlerl.data.prioritized import FlatPriorityTree
-from gentlerl.files import write_atomic
+from gentlerl.files import FileRefusedError, open_checked, write_atomic
 from gentlerl.models import make_actor
 from gentlerl.training.config import TrainConfig, make_config
 from gentlerl.training.migration import group_flat_config
@@ -140,10 +140,15 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
         CheckpointError: a truncated, corrupt or foreign file (one line naming it).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no checkpoint at {path}")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        f = open_checked(path, cap=None, binary=True)  # a link, a FIFO, /dev/zero: refused unread
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no checkpoint at {path}") from None
+    except FileRefusedError as err:
+        raise CheckpointError(str(err)) from None
+    try:
+        with f:
+            state = torch.load(f, map_location="cpu", weights_only=True)
     except Exception as err:  # damaged bytes fail anywhere in the unpickler (KeyError, EOFError...)
         lines = str(err).strip().splitlines() or [type(err).__name__]
         # torch's weights-only refusal explains itself on the "Unsupported global" line.

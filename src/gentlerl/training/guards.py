@@ -23,7 +23,7 @@ import yaml
 
 from gentlerl.config.fields import resumable
 from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
-from gentlerl.files import load_yaml
+from gentlerl.files import load_yaml_file
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.migration import group_flat_config
@@ -144,7 +144,7 @@ def _history(path: Path) -> list:
     if not path.exists():
         return []
     try:
-        history = load_yaml(path.read_text(errors="replace"))
+        history = load_yaml_file(path, errors="replace")
     except yaml.YAMLError as err:
         raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if history is None:
