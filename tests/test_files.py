@@ -223,3 +223,13 @@ def test_every_reader_refuses_a_fifo_a_device_and_a_huge_file_unread(tmp_path, r
     assert any(fragment in str(err.value) for fragment in expected), str(err.value)
     grown_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
     assert grown_kib < 200_000  # nothing of the 2 GiB was read
+
+
+def test_yaml_reads_yaml_1_2_core_numbers_and_dump_yaml_round_trips_words_that_look_like_them():
+    from gentlerl.files import dump_yaml, load_yaml
+
+    assert load_yaml("[010, 1e-3, .5, 1., -.inf, 1:04, 1_000, 0x10, yes, 2024-01-01]") == [
+        10, 0.001, 0.5, 1.0, float("-inf"), "1:04", "1_000", "0x10", "yes", "2024-01-01",
+    ]  # fmt: skip
+    words = {"a": "1e-3", "b": "010", "c": "on", "d": "null", "e": "", "f": ".nan", "g": 1e-05}
+    assert load_yaml(dump_yaml(words)) == words

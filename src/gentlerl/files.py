@@ -185,13 +185,32 @@ def read_checked(
     return data.decode("utf-8", errors=errors or "strict")
 
 
+_TAG = "tag:yaml.org,2002:"
+#: YAML 1.2's core schema: the only texts read as booleans, integers and floats. Not YAML 1.1's
+#: octal ``010`` (8: here 10, as ``gentlerl train`` reads it), sexagesimal ``1:04`` (64),
+#: ``1_000``, ``0x10``, ``yes`` / ``on``, timestamps: those stay words, which a number or boolean
+#: setting refuses; ``1e-3`` is a float (YAML 1.1 wanted ``1.0e-3``).
+YAML_BOOL = re.compile(r"true|True|TRUE|false|False|FALSE")
+YAML_INT = re.compile(r"[-+]?[0-9]+")
+YAML_FLOAT = re.compile(
+    r"[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN)"
+)
+
+
 class _NoAliasLoader(yaml.SafeLoader):
     """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed and reads
-    only ``true`` / ``false`` as booleans (YAML 1.2's core schema): YAML 1.1's ``yes``, ``no``,
-    ``on``, ``off`` stay words, which a boolean setting then refuses, as the command line does."""
+    booleans and numbers by YAML 1.2's core schema (:data:`YAML_BOOL`, :data:`YAML_INT`,
+    :data:`YAML_FLOAT`): YAML 1.1's ``yes``, ``no``, ``on``, ``off``, ``010``, ``1:04`` stay
+    words, which a boolean or number setting then refuses, as the command line does; an explicit
+    tag on a text that is not one (``!!bool 2``, ``!!int 1:04``) is a YAML error."""
 
     yaml_implicit_resolvers = {
-        first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:bool"]
+        first: [
+            (tag, rx)
+            for tag, rx in resolvers
+            if tag not in (f"{_TAG}bool", f"{_TAG}int", f"{_TAG}float", f"{_TAG}timestamp")
+        ]
         for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
     }
 
@@ -204,9 +223,67 @@ class _NoAliasLoader(yaml.SafeLoader):
         return super().compose_node(parent, index)
 
 
-_NoAliasLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+def _anchored(pattern: re.Pattern[str]) -> re.Pattern[str]:
+    return re.compile(f"^(?:{pattern.pattern})$")
+
+
+# in this order: an integer's text is a float's too
+_NoAliasLoader.add_implicit_resolver(f"{_TAG}bool", _anchored(YAML_BOOL), list("tTfF"))
+_NoAliasLoader.add_implicit_resolver(f"{_TAG}int", _anchored(YAML_INT), list("-+0123456789"))
+_NoAliasLoader.add_implicit_resolver(f"{_TAG}float", _anchored(YAML_FLOAT), list("-+0123456789."))
+
+
+def _scalar(kind: str, pattern: re.Pattern[str], read: Callable[[str], Any]) -> Callable:
+    def construct(loader: yaml.SafeLoader, node: yaml.Node) -> Any:
+        text = loader.construct_scalar(node)
+        if isinstance(text, str) and pattern.fullmatch(text):
+            try:
+                return read(text)
+            except ValueError:  # an integer of more digits than Python converts
+                pass
+        raise yaml.constructor.ConstructorError(
+            None, None, f"{str(text)[:40]!r} is not {kind} (YAML 1.2 core)", node.start_mark
+        )
+
+    return construct
+
+
+def _float(text: str) -> float:
+    special = text.lower().lstrip("+-") in (".inf", ".nan")  # YAML's spelling of inf and nan
+    return float(text.replace(".", "", 1) if special else text)
+
+
+_NoAliasLoader.add_constructor(
+    f"{_TAG}bool", _scalar("true or false", YAML_BOOL, lambda t: t.lower() == "true")
 )
+_NoAliasLoader.add_constructor(f"{_TAG}int", _scalar("an integer", YAML_INT, int))
+_NoAliasLoader.add_constructor(f"{_TAG}float", _scalar("a number", YAML_FLOAT, _float))
+
+
+def _implicit_tag(text: str) -> str:
+    """The tag :func:`load_yaml` gives the plain (unquoted) scalar ``text``."""
+    for tag, rx in _NoAliasLoader.yaml_implicit_resolvers.get(text[:1] if text else "", []):
+        if rx.match(text):
+            return tag
+    return f"{_TAG}str"
+
+
+class _Dumper(yaml.SafeDumper):
+    """``yaml.SafeDumper`` quoting every string that :func:`load_yaml` (YAML 1.2 core) or a YAML
+    1.1 reader would read as something else (``1e-3``, ``010``, ``yes``)."""
+
+    def represent_str(self, data: str) -> yaml.ScalarNode:
+        if _implicit_tag(data) != f"{_TAG}str":
+            return self.represent_scalar(f"{_TAG}str", data, style="'")
+        return super().represent_str(data)
+
+
+_Dumper.add_representer(str, _Dumper.represent_str)
+
+
+def dump_yaml(data: Any, **options: Any) -> str:
+    """``yaml.safe_dump(data, **options)`` that :func:`load_yaml` reads back as ``data``."""
+    return yaml.dump(data, Dumper=_Dumper, **options)
 
 
 def load_yaml(text: str) -> Any:

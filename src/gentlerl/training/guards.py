@@ -11,9 +11,7 @@ change and each change is appended to ``config_history.yaml`` in the run directo
 from __future__ import annotations
 
 import math
-import os
 import sys
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,8 +20,8 @@ import torch
 import yaml
 
 from gentlerl.config.fields import resumable
-from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
-from gentlerl.files import load_yaml_file
+from gentlerl.config.layout import RunLayout
+from gentlerl.files import dump_yaml, load_yaml_file, write_atomic
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.migration import group_flat_config
@@ -131,10 +129,7 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
     history = _history(path)
     entry = {n: {"was": old, "now": new} for n, (old, new) in changes.items()}
     history.append({"resumed_at_frame": int(frames), "changed": entry})
-    fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=f".{CONFIG_HISTORY}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        yaml.safe_dump(history, f, sort_keys=False)
-    os.replace(tmp, path)
+    write_atomic(path, dump_yaml(history, sort_keys=False))
     return sorted(changes)
 
 
