@@ -104,3 +104,12 @@ def test_an_explicit_tag_on_a_text_it_does_not_fit_is_one_line_not_a_key_error(t
         match=r"not valid YAML \(.* is not (true or false|an integer|a number) \(YAML 1.2 core\)",
     ):
         load_sweep(path)
+
+
+def test_scale_is_one_preset_not_a_list_on_every_command(tmp_path):
+    """The finding: ``--set 'scale=[cpu]'`` raised "unhashable type: 'list'"; ``gentlerl train
+    scale=[cpu]`` merged a list of presets."""
+    with pytest.raises(ValueError, match=r"unknown scale \['cpu'\]; expected one of"):
+        _set("scale=[cpu]")
+    with pytest.raises(ValueError, match=r"scale=\[cpu\]: scale is one preset of"):
+        _train("scale=[cpu]")

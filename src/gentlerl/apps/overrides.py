@@ -20,6 +20,7 @@ from typing import Any
 from gentlerl.apps.errors import causes
 from gentlerl.config.fields import describe_type, field_hints
 from gentlerl.config.groups import GROUPS
+from gentlerl.config.presets import SCALES
 from gentlerl.training.config import TrainConfig
 
 #: hydra's folders, which gentlerl sets from ``run_dir``.
@@ -47,6 +48,9 @@ def override_problems(overrides: Sequence[str]) -> list[str]:
                 f"{item}: a config field cannot be removed (it would take its default without a "
                 f"word); set it instead ({key[1:]}=...)"
             )
+        elif key == "scale" and item.partition("=")[2].lstrip().startswith("["):
+            # a config group: hydra would merge a list's presets ([cpu,paper]) one on another
+            problems.append(f"{item}: scale is one preset of {sorted(SCALES)}")
         elif key.lstrip("+") in HYDRA_DIRS:
             problems.append(f"{item}: gentlerl sets hydra's folders from run_dir; set run_dir")
         elif "=" in item and (hint := fields.get(key.lstrip("+"))) is not None:
