@@ -20,6 +20,17 @@ from pathlib import Path
 from gentlerl.config.layout import RunLayout
 from gentlerl.files import LinkRefusedError, folder_link_problem, links_under
 
+#: The run directories whose lock this process holds (resolved), so that a driver taking the
+#: locks of its runs (:class:`~gentlerl.training.lockstep.Lockstep`) does not take one its
+#: caller holds (``flock`` would refuse this process its own lock).
+#: Each entry names its process: a forked child inherits the set, not the locks.
+_HELD: set[tuple[int, Path]] = set()
+
+
+def held_here(run_dir: str | os.PathLike) -> bool:
+    """Whether this process holds the lock of ``run_dir``."""
+    return (os.getpid(), Path(run_dir).resolve()) in _HELD
+
 
 class RunLockedError(OSError):
     """The run directory is held by another live process (busy); the message names it."""
@@ -63,6 +74,7 @@ class RunLock:
                 os.ftruncate(fd, 0)
                 os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode())
                 self._fd = fd
+                _HELD.add((os.getpid(), run_dir.resolve()))
                 return self
             os.close(fd)
         raise RunLockedError(f"could not take the lock {self.path}: it keeps changing")
@@ -79,6 +91,7 @@ class RunLock:
 
     def release(self) -> None:
         if self._fd is not None:
+            _HELD.discard((os.getpid(), self.path.parent.resolve()))
             self.path.unlink(missing_ok=True)
             os.close(self._fd)
             self._fd = None
