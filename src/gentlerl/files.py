@@ -198,6 +198,22 @@ YAML_FLOAT = re.compile(
 )
 
 
+#: What a spreadsheet reads as a formula at the start of a cell (CSV injection).
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_safe(value: Any) -> Any:
+    """``value`` for a CSV cell a person may open in a spreadsheet: a text starting as a formula
+    (:data:`FORMULA_START`, ``=HYPERLINK(...)``) with a leading apostrophe, which shows it as
+    text; numbers, and texts that are numbers (``-1.5``), as they are."""
+    if isinstance(value, str) and value.startswith(FORMULA_START):
+        try:
+            float(value)
+        except ValueError:
+            return "'" + value
+    return value
+
+
 class _NoAliasLoader(yaml.SafeLoader):
     """``yaml.SafeLoader`` that refuses aliases (``*name``) where they are composed and reads
     booleans and numbers by YAML 1.2's core schema (:data:`YAML_BOOL`, :data:`YAML_INT`,

@@ -88,3 +88,14 @@ def test_a_results_file_never_writes_a_formula(column, start):
         results_text([{**typed, "return": float("nan")}])
     quoted = results_text([{**typed, "variant": 'a,"b"\nc'}])
     assert '"a,""b""\nc"' in quoted  # a comma, a quote, a newline: quoted
+
+
+def test_a_summary_csv_shows_a_planted_formula_as_text():
+    """``gentlerl plot``'s summary.csv holds labels read from run configs (a crafted config.yaml's
+    variant ``=HYPERLINK(...)``): shown as text, numbers left alone."""
+    from gentlerl.files import spreadsheet_safe
+
+    assert spreadsheet_safe('=HYPERLINK("x")') == '\'=HYPERLINK("x")'
+    assert spreadsheet_safe("@SUM(A1)") == "'@SUM(A1)" and spreadsheet_safe("+cmd") == "'+cmd"
+    assert spreadsheet_safe("-1.5") == "-1.5" and spreadsheet_safe(-2.0) == -2.0
+    assert spreadsheet_safe("r+rf") == "r+rf"

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from gentlerl.analysis.runs import final_eval_episodes, load_run
-from gentlerl.files import open_checked, write_atomic
+from gentlerl.files import FORMULA_START, open_checked, write_atomic
 
 #: The results file's columns, in order: which run (suite, cell = task/variant, seed), how long
 #: it trained (frames), its final evaluation (mean return, success and broken rates, mean of the
@@ -61,8 +61,6 @@ INTEGER = ("seed", "frames", "grouped")
 #: digits, which Python's ``int`` / ``float`` would take), finite (no ``nan`` / ``inf``).
 _INTEGER = re.compile(r"[+-]?[0-9]+", re.ASCII)
 _FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
-#: What a spreadsheet reads as a formula at the start of a cell (CSV injection).
-FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 #: The most rows a results file may hold (a suite of 64 cells x 64 seeds is 4,096).
 MAX_ROWS = 100_000
 
