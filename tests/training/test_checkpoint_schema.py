@@ -152,3 +152,15 @@ def test_a_checkpoint_without_its_config_is_one_line_naming_the_file(saved, tmp_
     cfg = tiny_config(tmp_path, total_frames=500, resume=True)
     with pytest.raises(ValueError, match=r"checkpoint.pt: it lacks its config \(a mapping\)"):
         load_resume_state(cfg, tmp_path / "checkpoint.pt")
+
+
+def test_a_nan_frame_count_in_a_policy_file_is_one_line_naming_it(saved, tmp_path):
+    """``gentlerl evaluate`` / ``export`` read a checkpoint's frames as ``int(nan)``."""
+    from gentlerl.training.checkpoint import CheckpointError, export_policy
+
+    state = _state(saved)
+    state["counters"]["frames"] = math.nan
+    save_checkpoint(tmp_path / "checkpoint.pt", state)
+    with pytest.raises(CheckpointError, match=r"checkpoint.pt: its frame count nan is not a whole"):
+        export_policy(tmp_path / "checkpoint.pt", tmp_path / "policy.pt")
+    assert not (tmp_path / "policy.pt").exists()
