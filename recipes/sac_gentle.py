@@ -37,7 +37,6 @@ from torchrl.objectives import SACLoss, SoftUpdate
 from tqdm import tqdm
 
 from gentlerl.config import GentlenessConfig, Range, check_group
-from gentlerl.config.limits import MAX_SEED
 from gentlerl.envs import TASKS, make_env
 from gentlerl.rewards import VARIANTS, ImpactMultiplier, IntrinsicRewards, SumRewards
 from gentlerl.training import EVAL_SEED_OFFSET, actor_episodes, evaluate_actor
@@ -82,9 +81,10 @@ class SACConfig:
     num_threads: int = 1  # torch threads: one run per core, as gentlerl's runs
 
 
-#: Each number's range, written as ``gentlerl train`` writes its own (``gentlerl.config.Range``).
+#: Each number's range, written as ``gentlerl train`` writes its own (``gentlerl.config.Range``;
+#: the seed's is gentlerl's: numpy seeds below 2**32 take the seed plus offsets).
 BOUNDS = {
-    "seed": f"[0, {MAX_SEED}]", "total_frames": "[1, 10000000000]",
+    "seed": "[0, 2147483647]", "total_frames": "[1, 10000000000]",
     "init_random_frames": ">= 0", "frames_per_batch": "[1, 100000]", "utd_ratio": "(0, 64]",
     "batch_size": "[1, 65536]", "buffer_size": "[1, 10000000]", "lr": "(0, 1]",
     "gamma": "(0, 1]", "polyak": "[0, 1)", "alpha_init": "(0, 1000]", "reward_delay": ">= 0",
