@@ -233,3 +233,12 @@ def test_yaml_reads_yaml_1_2_core_numbers_and_dump_yaml_round_trips_words_that_l
     ]  # fmt: skip
     words = {"a": "1e-3", "b": "010", "c": "on", "d": "null", "e": "", "f": ".nan", "g": 1e-05}
     assert load_yaml(dump_yaml(words)) == words
+
+
+def test_a_file_that_is_not_utf8_is_one_line_naming_it(tmp_path):
+    from gentlerl.apps.sweep_files import load_sweep
+    from gentlerl.files import FileRefusedError
+
+    (tmp_path / "s.yaml").write_bytes(b"parameters:\n  seed: \xff\n")
+    with pytest.raises(FileRefusedError, match=r"s.yaml is not UTF-8 text \(byte 20\)"):
+        load_sweep(tmp_path / "s.yaml")

@@ -182,7 +182,10 @@ def read_checked(
         raise FileRefusedError(
             errno.EFBIG, f"{os.fspath(path)} grew over {cap:,} bytes as it was read"
         )
-    return data.decode("utf-8", errors=errors or "strict")
+    try:
+        return data.decode("utf-8", errors=errors or "strict")
+    except UnicodeDecodeError as err:
+        raise FileRefusedError(f"{os.fspath(path)} is not UTF-8 text (byte {err.start})") from None
 
 
 _TAG = "tag:yaml.org,2002:"
