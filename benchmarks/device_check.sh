@@ -15,11 +15,17 @@
 # when present (CONTRIBUTING.md, "A lent GPU machine", says how to build it), unpacked into a
 # private temporary folder removed on exit, else from the environment.
 # Each section has its own time limit, so a slow one cannot cost the others their numbers.
-# An unknown SECTION, an OUT_DIR that is a link or another user's, and a device_table.md or
+# A relative OUT_DIR is taken from the folder the script is run in. An option (-x), an unknown
+# SECTION, an OUT_DIR that is a link or another user's, and a device_table.md or
 # device_log.txt there that is a link or not a regular file are refused in one line (exit 2 / 1).
 set -uo pipefail
-cd "$(dirname "$0")/.."
 OUT_DIR="${1:-${OUT:-/tmp/device_check}}"
+case "$OUT_DIR" in
+  -*) echo "device_check: '$OUT_DIR' is not an OUT_DIR (it takes no options; usage: bash benchmarks/device_check.sh [OUT_DIR] [SECTION ...])" >&2; exit 2 ;;
+  /*) ;;
+  *) OUT_DIR="$PWD/$OUT_DIR" ;;  # relative to where it was run, not to the checkout it moves to
+esac
+cd "$(dirname "$0")/.." || exit 1
 shift || true
 SECTIONS="${*:-env learner replay collect e2e}"
 for section in $SECTIONS; do

@@ -25,6 +25,11 @@ kill, against the tests copied in afresh: after tests were *added*, the full run
 fraction of its time. It refuses when the source (any file of ``src/``) differs from the copy
 the mutants were made from; a mutant killed before stays killed only while the test that killed it is kept,
 so a run after tests were changed or removed must be a full one.
+
+The work folder is this script's own: it writes a marker file (:data:`MARKER`) when it creates
+it, and empties or replaces only a folder holding that marker (a regular file, not a link) that
+is neither the checkout nor holds it. ``--workdir .`` or ``--workdir src`` is refused, never
+deleted; an empty folder that exists is taken (and marked).
 """
 
 from __future__ import annotations
@@ -74,6 +79,9 @@ DESELECT = {
 #: pytest's arguments for every mutant: stop at the first failure, quiet, no cache writes.
 PYTEST_ARGS = ["-x", "-q", "-p", "no:cacheprovider"]
 
+#: The file this script writes into a work folder it creates; only a folder holding it is emptied.
+MARKER = ".gentlerl-mutation-workdir"
+
 #: The statuses ``mutmut results --all true`` prints, in the order of the table.
 STATUSES = ("killed", "survived", "timeout", "no tests", "suspicious", "segfault", "skipped")
 
@@ -81,9 +89,10 @@ STATUSES = ("killed", "survived", "timeout", "no tests", "suspicious", "segfault
 def prepare(package: str, workdir: Path) -> None:
     """A fresh work folder: ``src/``, ``tests/``, ``pyproject.toml`` (pytest's settings) and the
     mutmut settings in a ``setup.cfg`` of its own."""
-    if workdir.exists():
+    if own_workdir(workdir):
         shutil.rmtree(workdir)
-    workdir.mkdir(parents=True)
+    workdir.mkdir(parents=True, exist_ok=True)
+    (workdir / MARKER).write_text("made by benchmarks/mutation.py; the folder is emptied by it\n")
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(ROOT / "src", workdir / "src", ignore=ignore)
     shutil.copytree(ROOT / "tests", workdir / "tests", ignore=ignore)
@@ -101,11 +110,41 @@ def prepare(package: str, workdir: Path) -> None:
     (workdir / "setup.cfg").write_text("\n".join(lines) + "\n")
 
 
+def own_workdir(workdir: Path) -> bool:
+    """Whether ``workdir`` is a work folder this script made (it holds :data:`MARKER`, and may be
+    emptied); ``False`` when it does not exist or is an empty folder; exits, deleting nothing,
+    for anything else: a link, a file, the checkout or a folder holding it, a folder of files
+    this script did not make."""
+    if workdir.is_symlink() or (workdir.exists() and not workdir.is_dir()):
+        sys.exit(f"--workdir {workdir}: not a folder (a link or a file); give a new folder")
+    real, root = workdir.resolve(), ROOT.resolve()
+    if root.is_relative_to(real) or any(real.is_relative_to(root / d) for d in ("src", "tests")):
+        sys.exit(
+            f"--workdir {workdir}: the checkout, a folder holding it, or inside its src/ or tests/"
+            "; give a new folder"
+        )
+    if not workdir.exists():
+        return False
+    marker = workdir / MARKER
+    if marker.is_file() and not marker.is_symlink():
+        return True
+    if any(workdir.iterdir()):
+        sys.exit(
+            f"--workdir {workdir}: a folder benchmarks/mutation.py did not make (no {MARKER}); "
+            "it deletes only its own work folders: give a new or empty folder"
+        )
+    return False
+
+
 def tests_again(workdir: Path) -> list[str]:
     """The mutants the last run in ``workdir`` did not kill, with the tests copied in again;
     exits when there was no run there or the source (any of ``src/``) changed since."""
     if not (workdir / "mutants").is_dir():
         sys.exit(f"--rerun: no earlier run in {workdir}; run without --rerun first")
+    if not own_workdir(workdir):
+        sys.exit(f"--rerun: {workdir} is not a work folder this script made; run without --rerun")
+    if (workdir / "tests").is_symlink():
+        sys.exit(f"--rerun: {workdir / 'tests'} is a link; run without --rerun")
     rel = [p.relative_to(ROOT) for p in sorted((ROOT / "src").rglob("*.py"))]
     changed = [
         str(r)

@@ -28,6 +28,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
 from gentlerl.envs import make_env
+from gentlerl.files import read_checked
 from gentlerl.training import load_policy, make_config, train
 from gentlerl.transforms import ImpactPenalty
 
@@ -82,7 +83,7 @@ def _rollouts(run_dir: Path, episodes: int, seed: int) -> list[dict[str, float]]
 def _eval_success(run_dir: Path) -> list[float]:
     """Eval success at each evaluation (the final one is logged twice: kept once)."""
     path = run_dir / "logs" / "scalars" / "eval" / "success_rate.csv"
-    rows = [line.split(",") for line in path.read_text().splitlines() if line[:1].isdigit()]
+    rows = [line.split(",") for line in read_checked(path).splitlines() if line[:1].isdigit()]
     return list({frames: float(value) for frames, value in rows}.values())
 
 

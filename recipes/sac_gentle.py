@@ -81,9 +81,10 @@ class SACConfig:
     num_threads: int = 1  # torch threads: one run per core, as gentlerl's runs
 
 
-#: Each number's range, written as ``gentlerl train`` writes its own (``gentlerl.config.Range``).
+#: Each number's range, written as ``gentlerl train`` writes its own (``gentlerl.config.Range``;
+#: the seed's is gentlerl's: numpy seeds below 2**32 take the seed plus offsets).
 BOUNDS = {
-    "seed": "[0, 4294967295]", "total_frames": "[1, 10000000000]",
+    "seed": "[0, 2147483647]", "total_frames": "[1, 10000000000]",
     "init_random_frames": ">= 0", "frames_per_batch": "[1, 100000]", "utd_ratio": "(0, 64]",
     "batch_size": "[1, 65536]", "buffer_size": "[1, 10000000]", "lr": "(0, 1]",
     "gamma": "(0, 1]", "polyak": "[0, 1)", "alpha_init": "(0, 1000]", "reward_delay": ">= 0",
@@ -111,6 +112,13 @@ def check(cfg: SACConfig) -> list[str]:
         problems.append(str(err).split(": ", 1)[1].replace("gentleness.", ""))
     if cfg.multiplier != "none" and cfg.variant == "r":
         problems.append(f"multiplier={cfg.multiplier} weighs the penalty, which variant=r lacks")
+    if isinstance(cfg.seed, int) and isinstance(cfg.total_frames, int):
+        # its evaluations seed numpy with seed + 10,000 + the frames so far, below 2**32
+        if cfg.seed + EVAL_SEED_OFFSET + cfg.total_frames >= 2**32:
+            problems.append(
+                f"seed + {EVAL_SEED_OFFSET} + total_frames must be < 2**32 (numpy's seeds), got "
+                f"{cfg.seed} + {EVAL_SEED_OFFSET} + {cfg.total_frames}"
+            )
     if cfg.batch_size > cfg.buffer_size:
         problems.append(f"batch_size={cfg.batch_size} must be <= buffer_size={cfg.buffer_size}")
     return problems

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+from gentlerl.files import load_yaml_file, open_checked
 
 if __package__ in (None, ""):  # run as a script: the checkout's root on the path, as in the tests
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -32,9 +33,9 @@ def load_gentlebench(root: Path) -> dict[str, dict[str, list[dict]]]:
     ``env.force_scale`` undone) of its final actor's episodes."""
     out: dict[str, dict[str, list[dict]]] = {}
     for episodes in sorted(root.glob("gentlebench_*/*/final_eval_episodes.csv")):
-        config = yaml.safe_load((episodes.parent / "config.yaml").read_text())
+        config = load_yaml_file(episodes.parent / "config.yaml")
         scale = float(config["env"]["force_scale"])
-        with episodes.open() as f:
+        with open_checked(episodes, newline="") as f:
             rows = list(csv.DictReader(f))
         seed = {
             "seed": int(config["seed"]),

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from gentlerl.analysis.runs import Run, find_runs
+from gentlerl.files import open_checked
 
 if __package__ in (None, ""):  # run as a script: the checkout's root on the path, as in the tests
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -61,7 +62,7 @@ def _tail_mean(run: Run, name: str) -> float:
 def seed_result(run: Run) -> dict[str, Any]:
     """One run: its final actor's episodes' max impacts (N), returns and successes, its r^sp per
     contact step at the end and its penalty weight's trajectory."""
-    with (run.path / "final_eval_episodes.csv").open() as f:
+    with open_checked(run.path / "final_eval_episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
 
     def column(name: str) -> np.ndarray:

@@ -10,7 +10,10 @@ medians (``final_eval.json``); a results row (:data:`gentlerl.analysis.results.R
 holds the episodes' means. So each run's final actor (``actor.pt``) plays again the held-out
 episodes its ``final_eval.json`` summarises (the same count, the same seed: the same episodes),
 and the replay is refused when any of :data:`CHECKED` (success and broken rates, median max
-impact) differs from the recorded one. A row's ``wall_s`` is empty (the recipe logs no training clock), ``grouped`` 0, its date the
+impact) differs from the recorded one. Before anything is built, the recorded config is checked
+(:func:`checked_config`): the recipe's fields, types and bounds, and the folder's task, variant
+and seed; the files are read through ``gentlerl.files`` (no link, FIFO or oversized file).
+A row's ``wall_s`` is empty (the recipe logs no training clock), ``grouped`` 0, its date the
 day ``final_eval.json`` was written, its ``version`` / ``commit`` the code converting it.
 """
 
@@ -42,20 +45,75 @@ def _recipe() -> ModuleType:
     return sys.modules["sac_gentle"]
 
 
+#: The largest ``final_eval.json`` read (the recipe's is a few KB) and ``actor.pt`` (the
+#: recipe's largest actor, 8 layers of 4096, is about 540 MB).
+MAX_FINAL_EVAL_BYTES, MAX_ACTOR_BYTES = 1 << 20, 1 << 30
+
+
+def checked_config(run_dir: Path, final: Any) -> Any:
+    """The recipe's config recorded in ``final`` (a loaded ``final_eval.json``), refused in one
+    line naming the run before anything is built: not the recipe's fields and types, outside its
+    bounds (``recipes/sac_gentle.py``'s ``check``: a 1 kB file asking for ``hidden: [40000,
+    40000]`` would build 6.9 GB of networks), or another run's than its folder's
+    ``<task>/<variant>/seed<k>``; its recorded numbers finite."""
+    from omegaconf import OmegaConf
+
+    sac = _recipe()
+    where = f"{run_dir / 'final_eval.json'}"
+    if not isinstance(final, dict) or not isinstance(final.get("config"), dict):
+        raise ValueError(f"{where}: not the recipe's final evaluation (no config mapping)")
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(sac.SACConfig), final["config"])
+        cfg = sac.SACConfig(**OmegaConf.to_container(merged))
+    except Exception as err:  # noqa: BLE001 - omegaconf's errors, several lines
+        raise ValueError(
+            f"{where}: its config is not the recipe's ({str(err).splitlines()[0]})"
+        ) from None
+    if problems := sac.check(cfg):
+        raise ValueError(f"{where}: its config is invalid: {'; '.join(problems)}")
+    task, variant, seed = run_dir.parts[-3:]
+    if (cfg.task, cfg.variant, f"seed{cfg.seed}") != (task, variant, seed):
+        raise ValueError(
+            f"{where}: its config is task={cfg.task} variant={cfg.variant} seed={cfg.seed}, its "
+            f"folder {task}/{variant}/{seed}: not this folder's run"
+        )
+    numbers = {k: final.get(k) for k in (*CHECKED, "frames")}
+    bad = {
+        k: v for k, v in numbers.items()
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0
+    }  # fmt: skip
+    if bad or not isinstance(final["frames"], int):
+        raise ValueError(f"{where}: {bad or numbers} must be finite numbers >= 0 (frames whole)")
+    return cfg
+
+
 def replay(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, float]]]:
     """The run's ``final_eval.json`` and its final actor's episodes played again (a
-    ``ValueError`` naming the run and the number when they are not the recorded episodes)."""
+    ``ValueError`` naming the run and the number when they are not the recorded episodes); the
+    recorded config checked first (:func:`checked_config`)."""
     import torch
 
     from gentlerl.envs import make_env
+    from gentlerl.files import folder_link_problem, open_checked, read_checked
     from gentlerl.training import actor_episodes
     from gentlerl.training.evaluation import summarize
 
+    for folder in (run_dir, run_dir.parent, run_dir.parent.parent):
+        if problem := folder_link_problem(folder, "run folder"):
+            raise ValueError(problem)
     sac = _recipe()
-    final = json.loads((run_dir / "final_eval.json").read_text())
-    cfg = sac.SACConfig(**final["config"])
+    try:
+        final = json.loads(read_checked(run_dir / "final_eval.json", MAX_FINAL_EVAL_BYTES))
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{run_dir / 'final_eval.json'}: not JSON ({err})") from None
+    cfg = checked_config(run_dir, final)
     actor = sac.make_sac_agent(sac.make_env_and_rewards(cfg)[0], cfg.hidden)[0]
-    actor.load_state_dict(torch.load(run_dir / "actor.pt", weights_only=True))
+    try:
+        with open_checked(run_dir / "actor.pt", MAX_ACTOR_BYTES, binary=True) as f:
+            actor.load_state_dict(torch.load(f, weights_only=True))
+    except (RuntimeError, KeyError, TypeError, EOFError, AttributeError) as err:
+        reason = str(err).strip().splitlines()[0][:160] if str(err).strip() else type(err).__name__
+        raise ValueError(f"{run_dir / 'actor.pt'}: not this config's actor ({reason})") from None
     episodes = actor_episodes(
         lambda: make_env(cfg.task), actor, cfg.final_eval_episodes, sac.FINAL_EVAL_SEED
     )
@@ -71,9 +129,9 @@ def replay(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, float]]]:
 
 def run_row(run_dir: Path, suite: str, stamp: dict[str, str]) -> dict[str, Any]:
     """One results row of the run at ``ROOT/<task>/<variant>/seed<k>`` (its labels: the grid's)."""
-    final, episodes = replay(run_dir)
+    final, episodes = replay(run_dir)  # its config is its folder's task, variant and seed
     task, variant = run_dir.parts[-3], run_dir.parts[-2]
-    written = (run_dir / "final_eval.json").stat().st_mtime
+    written = (run_dir / "final_eval.json").lstat().st_mtime
     return {
         "suite": suite, "cell": f"{task}/{variant}", "task": task, "variant": variant,
         "seed": final["config"]["seed"], "frames": final["frames"],

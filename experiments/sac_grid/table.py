@@ -18,6 +18,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from gentlerl.files import read_checked
+
 if __package__ in (None, ""):  # run as a script: the checkout's root on the path, as in the tests
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
@@ -35,7 +37,7 @@ def load_sac_grid(root: Path) -> dict[tuple[str, str], list[dict]]:
     runs: dict[tuple[str, str], list[dict]] = {}
     for path in sorted(root.glob("*/*/seed*/final_eval.json")):
         task, variant = path.parts[-4], path.parts[-3]
-        runs.setdefault((task, variant), []).append(json.loads(path.read_text()))
+        runs.setdefault((task, variant), []).append(json.loads(read_checked(path)))
     if not runs:
         raise FileNotFoundError(f"no <task>/<variant>/seed<k>/final_eval.json under {root}")
     return runs

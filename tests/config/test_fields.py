@@ -102,10 +102,12 @@ OLD_RANGES = {
         (
             "learner.lr_actor learner.lr_critic gentleness.lr_model collector.cpus_per_worker "
             "collector.memory_per_worker_gb network.dense_reward_bound env.force_scale "
-            "network.penalty_surprise_bound gentleness.tolerance"
+            "network.penalty_surprise_bound"
         ).split(),
         "> 0",
     ),
+    # a micronewton at least: below, its unit underflows float32 (issue 63)
+    "gentleness.tolerance": ">= 1e-06",
     "learner.gamma": "(0, 1]",
     "replay.alpha": "[0, 1]",
     "replay.beta": "[0, 1]",

@@ -73,3 +73,53 @@ def test_the_script_writes_a_results_file_and_refuses_a_bad_suite_in_one_line(tm
     assert done.returncode == 0, done.stderr
     (row,) = read_results(out)
     assert row["cell"] == "touch/r+rf+rsp" and row["wall_s"] is None
+
+
+def _tampered(run: Path, **changes) -> None:
+    final = json.loads((run / "final_eval.json").read_text())
+    for key, value in changes.items():
+        if key in final["config"] or key == "no_such":
+            final["config"][key] = value
+        else:
+            final[key] = value
+    (run / "final_eval.json").write_text(json.dumps(final))
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        # the finding: a 1 kB final_eval.json asking for these sizes reached 6.9 GB
+        ({"hidden": [40000, 40000]}, r"hidden=\[40000, 40000\] must list 1 to 8 layer sizes"),
+        ({"seed": 7}, "config is task=touch variant=r seed=7, its folder touch/r/seed0"),
+        ({"task": "fragile"}, "config is task=fragile .* its folder touch/r/seed0: not this"),
+        ({"final_eval_episodes": 10**9}, r"final_eval_episodes=1000000000 must be in \[1, 10000\]"),
+        ({"no_such": 1}, "its config is not the recipe's"),
+        ({"hidden": "x"}, "its config is not the recipe's"),
+        ({"success_rate": float("nan")}, r"'success_rate': nan.* must be finite numbers"),
+        ({"frames": "30000"}, "must be finite numbers"),
+    ],
+)
+def test_a_replayed_config_is_checked_against_its_folder_and_bounds_before_building(
+    tmp_path, monkeypatch, changes, message
+):
+    import experiments.sac_grid.results as results
+
+    run = _run(tmp_path)
+    _tampered(run, **changes)
+    built = []
+    monkeypatch.setattr(results._recipe(), "make_sac_agent", lambda *a: built.append(a))
+    with pytest.raises(ValueError, match=message) as err:
+        grid_rows(tmp_path, "sac_x")
+    assert "\n" not in str(err.value) and "final_eval.json" in str(err.value)
+    assert built == []  # refused before any network was built
+
+
+def test_a_run_folder_that_is_a_link_or_an_actor_of_other_sizes_is_refused(tmp_path):
+    run = _run(tmp_path / "a")
+    (tmp_path / "b" / "touch").mkdir(parents=True)
+    (tmp_path / "b" / "touch" / "r").symlink_to(run.parent)
+    with pytest.raises(ValueError, match="run folder=.* is a symbolic link"):
+        grid_rows(tmp_path / "b", "sac_x")
+    _tampered(run, hidden=[16])
+    with pytest.raises(ValueError, match=r"actor.pt: not this config's actor \(Error"):
+        grid_rows(tmp_path / "a", "sac_x")

@@ -92,3 +92,25 @@ def test_a_previous_table_is_replaced_whole(tmp_path):
     assert done.returncode == 0, done.stderr
     assert (out / "device_table.md").read_text().startswith("## device_check, ")
     assert not list(out.glob(".device_table.*"))  # the temporary file renamed into place
+
+
+def test_a_relative_out_dir_is_the_callers_and_an_option_is_refused(tmp_path):
+    """The findings: a relative OUT_DIR landed in the checkout (the script moves there); ``-x``
+    was taken as a folder name."""
+    stub = tmp_path / "python"
+    stub.write_text(STUB)
+    stub.chmod(0o755)
+    env = {**os.environ, "PYTHON": str(stub), "STUB_LOG": str(tmp_path / "stub.log")}
+    caller = tmp_path / "caller"
+    caller.mkdir()
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "rel_out", "env"], cwd=caller, env=env, capture_output=True,
+        text=True, timeout=60,
+    )  # fmt: skip
+    assert (caller / "rel_out" / "device_table.md").is_file(), done.stderr
+    assert not (ROOT / "rel_out").exists()
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "-x"], cwd=caller, env=env, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2 and "'-x' is not an OUT_DIR (it takes no options" in done.stderr
+    assert done.stderr.count("\n") == 1 and not (caller / "-x").exists()

@@ -34,6 +34,7 @@ def _earlier_run(tree: Path, workdir: Path) -> None:
     (workdir / "tests").mkdir()
     (workdir / "tests" / "test_old.py").write_text("def test_old(): pass\n")
     (workdir / "mutants").mkdir()
+    (workdir / ".gentlerl-mutation-workdir").write_text("made by benchmarks/mutation.py\n")
 
 
 def test_a_rerun_copies_the_tests_again_and_names_the_mutants_not_killed(mutation, tmp_path):
@@ -59,3 +60,38 @@ def test_a_rerun_refuses_when_the_source_changed_since_the_mutants_were_made(
     with pytest.raises(SystemExit, match=f"the source changed .*rewards/{name}"):
         mutation.tests_again(workdir)
     assert (workdir / "tests" / "test_old.py").exists()  # nothing was copied
+
+
+def test_a_rerun_refuses_a_folder_it_did_not_make_and_deletes_nothing(mutation, tmp_path):
+    """The finding: ``--rerun --workdir DIR`` with a ``mutants/`` folder deleted ``DIR/tests``."""
+    workdir = tmp_path / "work"
+    _earlier_run(mutation.ROOT, workdir)
+    (workdir / ".gentlerl-mutation-workdir").unlink()
+    with pytest.raises(SystemExit, match="did not make .*it deletes only its own work folders"):
+        mutation.tests_again(workdir)
+    assert (workdir / "tests" / "test_old.py").exists()
+
+
+@pytest.mark.parametrize("where", [".", "src", "tests", "src/gentlerl", "..", "other", "link"])
+def test_a_workdir_it_did_not_make_is_refused_and_nothing_is_deleted(mutation, tmp_path, where):
+    """The finding: ``--workdir .`` deleted a checkout copy, ``--workdir src`` the package."""
+    tree = mutation.ROOT
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "precious.txt").write_text("keep\n")
+    (tree / "link").symlink_to(tmp_path / "other")
+    before = sorted(str(p) for p in tmp_path.rglob("*"))
+    with pytest.raises(SystemExit, match=r"--workdir .*(did not make|checkout|link or a file)"):
+        mutation.prepare("rewards", (tmp_path / where) if where == "other" else tree / where)
+    assert sorted(str(p) for p in tmp_path.rglob("*")) == before
+
+
+def test_its_own_work_folder_is_replaced_and_an_empty_one_taken(mutation, tmp_path):
+    (mutation.ROOT / "pyproject.toml").write_text("[tool.pytest.ini_options]\n")
+    workdir = tmp_path / "work"
+    workdir.mkdir()
+    mutation.prepare("rewards", workdir)  # empty: taken and marked
+    (workdir / "stale.txt").write_text("from the last run\n")
+    mutation.prepare("rewards", workdir)  # marked: replaced
+    assert not (workdir / "stale.txt").exists()
+    assert (workdir / ".gentlerl-mutation-workdir").is_file()
+    assert (workdir / "src" / "gentlerl" / "rewards" / "sum.py").exists()

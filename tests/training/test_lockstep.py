@@ -52,3 +52,39 @@ def test_a_lockstep_is_refused_without_seeds_or_with_checkpoints_at_different_fr
     ]
     with pytest.raises(ValueError, match=r"checkpoints are at different frames \[300, 400\]"):
         Lockstep(resumed)
+
+
+def test_one_run_dir_twice_is_refused_and_a_lockstep_holds_its_run_locks(tmp_path):
+    """The findings: ``Lockstep`` (public) took no run lock and did not check that its run dirs
+    differ: one run dir twice duplicated eval rows and one checkpoint overwrote the other."""
+    from gentlerl.training.run_lock import RunLock, held_here
+
+    twice = [
+        Trainer(tiny_config(tmp_path / "a", seed=s, total_frames=300), toy_env) for s in (0, 1)
+    ]
+    with pytest.raises(ValueError, match=r"each seed needs its own run_dir, got \['.*a', '.*a'\]"):
+        Lockstep(twice)
+    with pytest.raises(ValueError, match="each seed needs its own run_dir"):
+        Lockstep([twice[0], twice[0]])
+    assert list((tmp_path / "a").iterdir()) == []  # nothing written
+    trainer = Trainer(tiny_config(tmp_path / "b", total_frames=300), toy_env)
+    with RunLock(tmp_path / "b"):  # another writer (here: this process, as a second run would be)
+        seen = []
+        loop = Lockstep([trainer])
+        loop._run = lambda: seen.append(held_here(tmp_path / "b")) or []
+        assert loop.run() == [] and seen == [True]  # its caller's lock kept, not taken twice
+    loop = Lockstep([trainer])
+    loop._run = lambda: seen.append(held_here(tmp_path / "b")) or []
+    loop.run()
+    assert seen == [True, True] and not held_here(tmp_path / "b")  # taken for the run, released
+    with RunLock(tmp_path / "c"):
+        import multiprocessing
+
+        child = multiprocessing.get_context("fork").Process(
+            target=lambda: Lockstep(
+                [Trainer(tiny_config(tmp_path / "c", total_frames=300), toy_env)]
+            ).run()
+        )
+        child.start()
+        child.join(120)
+        assert child.exitcode == 1  # RunLockedError in the other process: nothing run

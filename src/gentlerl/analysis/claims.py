@@ -10,6 +10,7 @@ from pathlib import Path
 
 from gentlerl.analysis.criteria import Verdict
 from gentlerl.analysis.runs import Run
+from gentlerl.files import read_checked
 
 
 def load_final_evals(folder: Path) -> dict[str, float]:
@@ -22,7 +23,7 @@ def load_final_evals(folder: Path) -> dict[str, float]:
         raise FileNotFoundError(f"--final-evals {folder}: no final_eval.jsonl under it")
     out = {}
     for path in paths:
-        for number, line in enumerate(path.read_text().splitlines(), 1):
+        for number, line in enumerate(read_checked(path, errors="replace").splitlines(), 1):
             if line.strip():
                 out.update([_final_eval(line, f"{path}:{number}")])
     return out

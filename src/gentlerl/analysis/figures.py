@@ -50,7 +50,7 @@ from gentlerl.analysis.runs import (  # noqa: E402
 )
 from gentlerl.analysis.summary import summary_markdown, summary_table  # noqa: E402
 from gentlerl.config.layout import FINAL_EVAL_EPISODES  # noqa: E402
-from gentlerl.files import write_atomic  # noqa: E402
+from gentlerl.files import spreadsheet_safe, write_atomic  # noqa: E402
 
 
 def _impact_panels(runs: Sequence[Run]) -> dict[str, dict[str, list[Run]]]:
@@ -214,7 +214,7 @@ def write_figures(runs: Sequence[Run], out: Path) -> list[Path]:
     def write_csv(f: IO) -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows({k: spreadsheet_safe(v) for k, v in row.items()} for row in rows)
 
     write_atomic(out / "summary.csv", write_csv, newline="")
     write_atomic(out / "summary.md", summary_markdown(rows))

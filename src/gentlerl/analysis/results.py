@@ -14,12 +14,13 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from gentlerl.analysis.runs import final_eval_episodes, load_run
-from gentlerl.files import write_atomic
+from gentlerl.files import FORMULA_START, open_checked, write_atomic
 
 #: The results file's columns, in order: which run (suite, cell = task/variant, seed), how long
 #: it trained (frames), its final evaluation (mean return, success and broken rates, mean of the
@@ -56,6 +57,10 @@ NUMERIC = (
 )
 #: Numeric columns holding integers.
 INTEGER = ("seed", "frames", "grouped")
+#: A number as a results file writes it: ASCII digits only (no ``1_000``, no other scripts'
+#: digits, which Python's ``int`` / ``float`` would take), finite (no ``nan`` / ``inf``).
+_INTEGER = re.compile(r"[+-]?[0-9]+", re.ASCII)
+_FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
 #: The most rows a results file may hold (a suite of 64 cells x 64 seeds is 4,096).
 MAX_ROWS = 100_000
 
@@ -90,21 +95,41 @@ def run_result(run_dir: str | Path) -> dict[str, float | None]:
     }
 
 
-def _text(value: Any) -> str:
-    """A CSV field: ``repr`` of a float (read back exactly), empty for ``None``."""
+def _text(value: Any, column: str = "") -> str:
+    """A CSV field: ``repr`` of a float (read back exactly), empty for ``None``; a number column
+    holds a finite number, and a text cell never starts as a formula (:func:`formula_safe`)."""
     if value is None:
         return ""
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
+    if column in NUMERIC:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            raise ValueError(f"results column {column}: {value!r:.40} is not a finite number")
+        return repr(value) if isinstance(value, float) else str(value)
+    return formula_safe(str(value), column)
+
+
+def formula_safe(text: str, column: str = "cell") -> str:
+    """``text`` for a CSV cell a spreadsheet may open, refused (``ValueError``) when it starts
+    as a formula would (:data:`FORMULA_START`): gentlerl's labels never do, so such a cell is a
+    planted name (a folder ``=HYPERLINK(...)``), not data."""
+    if text.startswith(FORMULA_START):
+        raise ValueError(
+            f"{column} {text[:40]!r} starts with {text[:1]!r}: a spreadsheet would run it as a "
+            "formula; gentlerl writes no such cell"
+        )
+    return text
 
 
 def results_text(rows: Sequence[Mapping[str, Any]]) -> str:
-    """``rows`` as the results file's text (header first, :data:`RESULT_COLUMNS` in order)."""
+    """``rows`` as the results file's text (header first, :data:`RESULT_COLUMNS` in order; the
+    csv module quotes a field holding a comma, a quote or a newline)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(RESULT_COLUMNS)
-    writer.writerows([_text(row.get(c)) for c in RESULT_COLUMNS] for row in rows)
+    writer.writerows([_text(row.get(c), c) for c in RESULT_COLUMNS] for row in rows)
     return out.getvalue()
 
 
@@ -116,11 +141,14 @@ def write_results(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> None:
 def _number(text: str, column: str, where: str) -> float | int | None:
     if text == "":
         return None
-    try:
-        value = int(text) if column in INTEGER else float(text)
-    except ValueError:
-        raise ValueError(f"{where}: {column}={text[:40]!r} is not a number") from None
-    return value
+    pattern = _INTEGER if column in INTEGER else _FLOAT
+    if not pattern.fullmatch(text) or not math.isfinite(value := float(text)):
+        kind = "an integer" if column in INTEGER else "finite"
+        raise ValueError(
+            f"{where}: {column}={text[:40]!r} is not a number ({kind}, in ASCII digits; empty: "
+            "not measured)"
+        )
+    return int(text) if column in INTEGER else value
 
 
 def read_results(path: str | Path) -> list[dict[str, Any]]:
@@ -128,7 +156,7 @@ def read_results(path: str | Path) -> list[dict[str, Any]]:
     naming the file (and line) when a column is missing, a number is not one, or a run
     (suite, cell, seed) appears twice."""
     path = Path(path)
-    with path.open(newline="", errors="replace") as f:
+    with open_checked(path, newline="", errors="replace") as f:
         reader = csv.DictReader(f)
         missing = [c for c in RESULT_COLUMNS if c not in (reader.fieldnames or ())]
         if missing:

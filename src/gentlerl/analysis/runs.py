@@ -10,6 +10,7 @@ may also be a folder of runs (searched recursively). Runs that differ only by se
 from __future__ import annotations
 
 import functools
+import os
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -21,7 +22,7 @@ import yaml
 from numpy.lib import recfunctions
 
 from gentlerl.config.layout import CONFIG, RunLayout
-from gentlerl.files import load_yaml
+from gentlerl.files import load_yaml_file, open_checked, read_checked
 
 Series = tuple[np.ndarray, np.ndarray]
 EVAL_SUCCESS = "eval/success_rate"
@@ -89,7 +90,7 @@ def _read_series(path: Path) -> Series:
     """``(frames, values)`` of a scalar CSV (``frame,value`` lines); a line that is not two
     numbers is an error naming the file and the line."""
     frames, values = [], []
-    for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+    for number, line in enumerate(read_checked(path, errors="replace").splitlines(), 1):
         if line.strip():
             try:
                 frame, value = map(float, line.split(","))
@@ -107,10 +108,10 @@ def load_run(path: str | Path) -> Run:
     path = Path(path)
     layout = RunLayout(path)
     config_path = layout.config
-    if not layout.is_run():
+    if not os.path.lexists(config_path):  # one that is not a file: refused by its reader
         raise FileNotFoundError(f"{path} is not a gentlerl run directory (no {CONFIG})")
     try:
-        config = load_yaml(config_path.read_text(errors="replace"))
+        config = load_yaml_file(config_path, errors="replace")
     except yaml.YAMLError as err:
         raise ValueError(f"{config_path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(config, dict) or not {"task", "variant", "seed"} <= set(config):
@@ -195,16 +196,21 @@ def _episode_rows(path: Path) -> np.ndarray:
     array; empty if the file is missing or empty. A figure asks for the same files many times:
     each version of a file (path, mtime, size) is parsed once.
     """
-    stat = path.stat() if path.is_file() else None
-    if stat is None or stat.st_size == 0:
-        return np.zeros(0, dtype=[("frames", float), ("success", float), ("max_impact", float)])
-    return _parse_episodes(str(path), stat.st_mtime_ns, stat.st_size)
+    empty = np.zeros(0, dtype=[("frames", float), ("success", float), ("max_impact", float)])
+    if not os.path.lexists(path):
+        return empty
+    with open_checked(path) as f:  # a link, a FIFO or a huge file: refused unread
+        info = os.fstat(f.fileno())
+    if info.st_size == 0:
+        return empty
+    return _parse_episodes(str(path), info.st_mtime_ns, info.st_size)
 
 
 @functools.lru_cache(maxsize=512)
 def _parse_episodes(path: str, mtime_ns: int, size: int) -> np.ndarray:
     """:func:`_episode_rows` of one version of a file (``mtime_ns`` and ``size`` key the cache)."""
-    rows = np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True))
+    with open_checked(path, errors="replace") as f:
+        rows = np.atleast_1d(np.genfromtxt(f, delimiter=",", names=True))
     missing = [c for c in OUTCOME_COLUMNS if c not in rows.dtype.names]
     if missing:
         nan = [np.full(len(rows), np.nan) for _ in missing]

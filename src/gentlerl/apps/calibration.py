@@ -64,8 +64,8 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     from gentlerl.training.checkpoint import (
         POLICY_KEYS,
         check_critic_supports,
+        checked_policy_frames,
         load_checkpoint,
-        policy_frames,
         policy_from_state,
     )
 
@@ -97,7 +97,10 @@ def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
     finally:
         if env is not None:
             env.close()
-    info = {"frames": policy_frames(state), "not_saved": fields_not_saved(state["config"])}
+    info = {
+        "frames": checked_policy_frames(state, ckpt),
+        "not_saved": fields_not_saved(state["config"]),
+    }
     return cfg, learner, rewards, info
 
 

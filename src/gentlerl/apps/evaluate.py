@@ -44,7 +44,11 @@ def evaluate_policy(
     episodes there (:func:`write_episodes`). Returns ``task`` and the :func:`summarize` numbers.
     """
     from gentlerl.training.builders import default_env_factory
-    from gentlerl.training.checkpoint import load_checkpoint, policy_frames, policy_from_state
+    from gentlerl.training.checkpoint import (
+        checked_policy_frames,
+        load_checkpoint,
+        policy_from_state,
+    )
     from gentlerl.training.evaluation import (
         MAX_EPISODE_STEPS,
         check_episodes,
@@ -63,6 +67,7 @@ def evaluate_policy(
         check_output_file(episodes_csv, (".csv",))  # before the episodes, not after
     state = load_checkpoint(path)
     cfg, actor = policy_from_state(state, path)
+    frames = checked_policy_frames(state, path)  # before the episodes: a NaN count refused
     env_kwargs = dict(cfg.env.kwargs)
     if regime is not None:
         env_kwargs["regime"] = regime
@@ -81,7 +86,7 @@ def evaluate_policy(
     finally:
         env.close()
     if episodes_csv is not None:
-        write_episodes(episodes_csv, policy_frames(state), per_episode)
+        write_episodes(episodes_csv, frames, per_episode)
     task_name = task or cfg.env.name or cfg.task
     return {"task": task_name, **summarize(per_episode), "unit": force_unit(cfg.env.force_scale)}
 

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from gentlerl.config.layout import RunLayout
-from gentlerl.files import open_append
+from gentlerl.files import open_append, open_checked
 
 
 @dataclass(frozen=True)
@@ -157,9 +157,16 @@ def run_point(run: GridRun, extra: Sequence[str] = (), dry_run: bool = False) ->
     with open_append(log_path) as log:  # a planted link is refused, not written through
         code = _call(command, log)
     if code != 0:
-        lines = log_path.read_text(errors="replace").strip().splitlines()
+        lines = _tail(log_path).strip().splitlines()
         print(f"{run.run_dir}: exit {code}: {lines[-1] if lines else ''}", file=sys.stderr)
     return code
+
+
+def _tail(path: Path, size: int = 4096) -> str:
+    """The last ``size`` bytes of the log ``path`` (a trainer's stdout may be long)."""
+    with open_checked(path, cap=None, binary=True) as f:
+        f.seek(max(0, os.fstat(f.fileno()).st_size - size))
+        return f.read(size).decode(errors="replace")
 
 
 #: Trainers running now (their process groups are killed when the sweep is interrupted).

@@ -5,7 +5,8 @@ Refused before hydra runs: a key that names no config field, ``~field`` (the fie
 silently take its default), hydra's run / sweep directories (the run's is ``run_dir``; hydra
 would leave the folder it names empty), and a boolean written as a number or a word (OmegaConf
 reads ``learner.compile=1``, ``0``, ``yes``, ``on`` as booleans) or a number written as a
-boolean (``seed=true``).
+boolean (``seed=true``) or with ``_`` (``1_000``: hydra reads 1000, sweep and suite files and
+``--set``, YAML 1.2 core, a word), so that every command reads a value the same way.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Any
 from gentlerl.apps.errors import causes
 from gentlerl.config.fields import describe_type, field_hints
 from gentlerl.config.groups import GROUPS
+from gentlerl.config.presets import SCALES
 from gentlerl.training.config import TrainConfig
 
 #: hydra's folders, which gentlerl sets from ``run_dir``.
@@ -46,6 +48,9 @@ def override_problems(overrides: Sequence[str]) -> list[str]:
                 f"{item}: a config field cannot be removed (it would take its default without a "
                 f"word); set it instead ({key[1:]}=...)"
             )
+        elif key == "scale" and item.partition("=")[2].lstrip().startswith("["):
+            # a config group: hydra would merge a list's presets ([cpu,paper]) one on another
+            problems.append(f"{item}: scale is one preset of {sorted(SCALES)}")
         elif key.lstrip("+") in HYDRA_DIRS:
             problems.append(f"{item}: gentlerl sets hydra's folders from run_dir; set run_dir")
         elif "=" in item and (hint := fields.get(key.lstrip("+"))) is not None:
@@ -74,7 +79,15 @@ def _boolean_problem(item: str, hint: Any) -> str | None:
         return None if text.lower() in allowed else f"{item} must be {describe_type(hint)}"
     if bool not in kinds and str not in kinds and words & {"true", "false"}:
         return f"{item} must be {describe_type(hint)}"
+    if str not in kinds and kinds & {int, float} and any(_UNDERSCORED.fullmatch(w) for w in words):
+        # hydra reads 1_000 as 1000; a sweep, suite or --set value (YAML 1.2 core) does not
+        return f"{item}: write numbers without '_' (YAML 1.2 core, as sweep and suite files read)"
     return None
+
+
+#: A number with ``_`` between its digits (``1_000``), which hydra's grammar reads and YAML 1.2
+#: core does not.
+_UNDERSCORED = re.compile(r"[-+]?[0-9][0-9_]*_[0-9_]*(?:\.[0-9_]*)?(?:[eE][-+]?[0-9_]+)?")
 
 
 def hydra_error_line(err: BaseException, overrides: Sequence[str]) -> str:

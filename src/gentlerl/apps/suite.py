@@ -75,6 +75,10 @@ def _cell_problems(cell: Cell, seeds: Sequence[int], out: Path) -> tuple[Planned
         cfgs = tuple(group_configs(seeds, cell.items, folder))
     except (ValueError, TypeError) as err:
         return None, [_line(err)]
+    from gentlerl.files import folder_link_problem
+
+    if links := [p for cfg in cfgs if (p := folder_link_problem(cfg.run_dir))]:
+        return None, links
     grouped = cfgs[0].gentleness.multiplier == "none"
     done = all(RunLayout(cfg.run_dir).done.exists() for cfg in cfgs)
     planned = PlannedCell(cell, cfgs, grouped, done)

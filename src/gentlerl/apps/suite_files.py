@@ -33,7 +33,7 @@ import yaml
 
 from gentlerl.apps.sweep_files import parse_set
 from gentlerl.config.limits import MAX_SEEDS
-from gentlerl.files import load_yaml
+from gentlerl.files import load_yaml_file
 
 #: A suite's, task's or variant's label: a folder name (no '/', no leading '.').
 LABEL = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,99}")
@@ -147,7 +147,7 @@ def load_suite(path: str | Path) -> Suite:
     the file and what is wrong, in one line)."""
     path = Path(path)
     try:
-        spec = load_yaml(path.read_text())
+        spec = load_yaml_file(path)
     except yaml.YAMLError as err:
         raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(spec, dict):

@@ -18,7 +18,7 @@ from typing import Any
 
 import yaml
 
-from gentlerl.files import load_yaml
+from gentlerl.files import load_yaml, load_yaml_file
 
 __all__ = [
     "check_boolean",
@@ -113,7 +113,7 @@ def load_sweep(path: str | Path, allow_ray: bool = False) -> dict[str, list[Any]
     field and every value plain (:func:`check_key`, :func:`check_value`), none choosing a Ray
     cluster unless ``allow_ray`` (:func:`check_cluster`)."""
     try:
-        spec = load_yaml(Path(path).read_text())
+        spec = load_yaml_file(path)
     except yaml.YAMLError as err:
         raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(spec, dict):

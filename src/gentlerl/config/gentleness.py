@@ -15,6 +15,7 @@ from gentlerl.config.limits import (
     MAX_TRANSITIONS,
     MAX_WEIGHT,
     MAX_WIDTH,
+    MIN_FORCE,
 )
 
 #: gentleness.multiplier: the penalty head's weight fixed at 1 (the paper), steered by a PID
@@ -92,7 +93,7 @@ class GentlenessConfig:
         "the impact one step may deal, in the unit the rewards read (N): the penalty reads impacts "
         "in units of tolerance / 2, so lam and lam_prime keep the paper's values on every env "
         "(null: impacts in N, the paper)",
-        bounds=f"(0, {MAX_FORCE}]",
+        bounds=f"[{MIN_FORCE}, {MAX_FORCE}]",
     )
     curiosity_norm: bool = setting(
         False,

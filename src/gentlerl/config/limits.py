@@ -30,6 +30,10 @@ MAX_SEED = 2**31 - 1
 #: normal float32 penalty (-4e-11), where 1e300 N makes the unit inf and every impact cost 0.
 #: A megannewton is far above any hand's or robot's forces (the hand's tolerance: 2 N).
 MAX_FORCE = 1e6
+#: the smallest such force: a micronewton, far below any hand's sensing, and far above where the
+#: unit tolerance / lambda_2 underflows float32 (1e-300 made it 0, every impact an infinite
+#: number of units, refused as a force-unit fault instead of as the setting it is).
+MIN_FORCE = 1e-6
 #: a weight or scale on a reward or a penalty (``gentleness.multiplier_base``, the multiplier's
 #: integral cap, the surprise scales): it multiplies float32 rewards and critic values, and
 #: 1e6 times a value of the critics' support (|v| <= 1e3) stays far inside float32.

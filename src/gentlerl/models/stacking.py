@@ -111,6 +111,69 @@ def over_seeds(fn: Callable[..., Any], num_seeds: int) -> Callable[..., Any]:
     return one_seed
 
 
+#: What Adam keeps for each parameter (``max_exp_avg_sq`` only with ``amsgrad``).
+ADAM_MOMENTS = ("exp_avg", "exp_avg_sq", "max_exp_avg_sq")
+
+
+def optimizer_row_problem(optimizer: torch.optim.Optimizer, state: Any) -> str | None:
+    """Why ``state`` (one seed's saved Adam state, :func:`optimizer_row`'s format) cannot go
+    into a row of the batched ``optimizer``, or ``None``: its groups and parameters must be the
+    optimiser's, each moment shaped and typed as its parameter's row, finite (the second moments
+    >= 0), each step a finite count >= 0. Checked before anything is loaded: Adam's fused
+    kernel given a moment of another shape writes past its buffer (an abort in native code)."""
+    if not isinstance(state, Mapping):
+        return f"is a {type(state).__name__}, not an optimiser state"
+    saved, groups = state.get("state"), state.get("param_groups")
+    if not isinstance(saved, Mapping) or not isinstance(groups, list | tuple):
+        return "lacks its 'state' mapping or its 'param_groups' list"
+    live = optimizer.param_groups
+    if len(groups) != len(live):
+        return f"holds {len(groups)} parameter group(s), the optimiser {len(live)}"
+    params: dict[int, torch.Tensor] = {}
+    for i, (group, own) in enumerate(zip(groups, live, strict=True)):
+        ids = group.get("params") if isinstance(group, Mapping) else None
+        if not isinstance(ids, list | tuple) or len(ids) != len(own["params"]):
+            return f"parameter group {i} is not the optimiser's {len(own['params'])} parameters"
+        if not all(isinstance(k, int) and not isinstance(k, bool) for k in ids):
+            return f"parameter group {i} lists parameter ids that are not integers"
+        params.update(zip(ids, own["params"], strict=True))
+    if len(params) != sum(len(own["params"]) for own in live):
+        return "its parameter groups list a parameter id twice"
+    for index, entry in saved.items():
+        if index not in params or not isinstance(entry, Mapping):
+            return f"state {index!r} belongs to no parameter of the optimiser"
+        if problem := _adam_entry_problem(entry, params[index]):
+            return f"state {index} (parameter of shape {list(params[index].shape[1:])}): {problem}"
+    return None
+
+
+def _adam_entry_problem(entry: Mapping[str, Any], param: torch.Tensor) -> str | None:
+    """Why one parameter's saved Adam entry is not one for a row of ``param`` ([S, ...])."""
+    unknown = sorted(str(k) for k in entry if k not in ("step", *ADAM_MOMENTS))
+    missing = [k for k in ("step", *ADAM_MOMENTS[:2]) if k not in entry]
+    if unknown or missing:
+        return f"holds {unknown} and lacks {missing}" if unknown else f"lacks {missing}"
+    step = entry["step"]
+    if isinstance(step, torch.Tensor):
+        step = float(step) if step.ndim == 0 and not step.is_complex() else None
+    if isinstance(step, bool) or not isinstance(step, int | float) or not 0 <= step < 2**53:
+        return f"step {entry['step']!r} is not a finite count >= 0"
+    for key in ADAM_MOMENTS:
+        value = entry.get(key)
+        if value is None:
+            continue
+        if not isinstance(value, torch.Tensor) or value.dtype != param.dtype:
+            kind = value.dtype if isinstance(value, torch.Tensor) else type(value).__name__
+            return f"{key} is {kind}, the parameter {param.dtype}"
+        if value.shape != param.shape[1:]:
+            return f"{key} has shape {list(value.shape)}, the parameter {list(param.shape[1:])}"
+        if not bool(torch.isfinite(value).all()):
+            return f"{key} holds a NaN or infinite value"
+        if key != "exp_avg" and bool((value < 0).any()):
+            return f"{key} holds a negative value (a second moment is >= 0)"
+    return None
+
+
 def load_optimizer_row(
     optimizer: torch.optim.Optimizer,
     state: Mapping[str, Any],
@@ -120,7 +183,15 @@ def load_optimizer_row(
     """One seed's own optimiser state (:func:`optimizer_row`'s format) loaded into row ``seed``
     of the batched ``optimizer`` (the other rows kept; all taken from ``state`` when nothing was
     stepped yet), run with the kernels ``options`` (e.g. fused, capturable) whatever it was saved
-    with."""
+    with, and with ``optimizer``'s own hyperparameters (a learning rate changed since the state
+    was saved applies from now on; the file's are not read).
+
+    Raises:
+        ValueError: :func:`optimizer_row_problem` refuses ``state`` (nothing was loaded).
+    """
+    if problem := optimizer_row_problem(optimizer, state):
+        raise ValueError(f"seed {seed}'s saved optimiser state {problem}")
+    state = _renumbered(state)
     num_seeds = optimizer.param_groups[0]["params"][0].shape[0]
     if optimizer.state:
         rows = [optimizer_row(optimizer.state_dict(), s) for s in range(num_seeds)]
@@ -128,8 +199,23 @@ def load_optimizer_row(
         rows = [state] * num_seeds
     rows[seed] = state
     stacked = stack_optimizer_rows(rows)
-    groups = [{**g, **options} for g in stacked["param_groups"]]
+    groups = [
+        {**{k: v for k, v in own.items() if k != "params"}, **options, "params": saved["params"]}
+        for saved, own in zip(stacked["param_groups"], optimizer.param_groups, strict=True)
+    ]
     optimizer.load_state_dict({**stacked, "param_groups": groups})
+
+
+def _renumbered(state: Mapping[str, Any]) -> dict[str, Any]:
+    """``state`` with its parameter ids the positions of its parameters (as ``state_dict()``
+    numbers them), whatever ids the file used."""
+    ids = [k for group in state["param_groups"] for k in group["params"]]
+    new = {old: i for i, old in enumerate(ids)}
+    groups, start = [], 0
+    for group in state["param_groups"]:
+        groups.append({**group, "params": list(range(start, start + len(group["params"])))})
+        start += len(group["params"])
+    return {"state": {new[k]: v for k, v in state["state"].items()}, "param_groups": groups}
 
 
 def seed_stack(batches: Sequence[TensorDictBase]) -> TensorDictBase:

@@ -10,7 +10,6 @@ from functools import partial
 from typing import Any, NamedTuple
 
 import torch
-import yaml
 from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
@@ -23,7 +22,7 @@ from gentlerl.config import CollectorConfig
 from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
-from gentlerl.files import write_atomic
+from gentlerl.files import dump_yaml, write_atomic
 from gentlerl.lazy import record_missing_pandas
 from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training import guards
@@ -230,7 +229,7 @@ def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:
 def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
     """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
     config = guards.plain(cfg.to_dict())
-    write_atomic(layout.config, yaml.safe_dump(config))
+    write_atomic(layout.config, dump_yaml(config))
     return config
 
 

@@ -10,6 +10,7 @@ RNG state) are written as tagged plain dicts and rebuilt on load.
 from __future__ import annotations
 
 import errno
+import math
 import os
 import shutil
 from pathlib import Path
@@ -22,7 +23,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.data import ReplayBuffer
 
 from gentlerl.data.prioritized import FlatPriorityTree
-from gentlerl.files import write_atomic
+from gentlerl.files import FileRefusedError, open_checked, write_atomic
 from gentlerl.models import make_actor
 from gentlerl.training.config import TrainConfig, make_config
 from gentlerl.training.migration import group_flat_config
@@ -140,10 +141,15 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
         CheckpointError: a truncated, corrupt or foreign file (one line naming it).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no checkpoint at {path}")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        f = open_checked(path, cap=None, binary=True)  # a link, a FIFO, /dev/zero: refused unread
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no checkpoint at {path}") from None
+    except FileRefusedError as err:
+        raise CheckpointError(str(err)) from None
+    try:
+        with f:
+            state = torch.load(f, map_location="cpu", weights_only=True)
     except Exception as err:  # damaged bytes fail anywhere in the unpickler (KeyError, EOFError...)
         lines = str(err).strip().splitlines() or [type(err).__name__]
         # torch's weights-only refusal explains itself on the "Unsupported global" line.
@@ -263,12 +269,31 @@ def load_policy(path: str | os.PathLike) -> tuple[TrainConfig, TensorDictModule]
 
 def policy_frames(state: dict[str, Any]) -> int | None:
     """Env frames the actor in ``state`` trained for: a checkpoint's ``counters``, a
-    ``best_policy.pt``'s evaluation, an exported policy's ``frames``; ``None`` if unknown."""
-    if "counters" in state:
-        return int(state["counters"]["frames"])
+    ``best_policy.pt``'s evaluation, an exported policy's ``frames``; ``None`` if unknown.
+
+    Raises:
+        CheckpointError: the count is there but not a whole number >= 0 (a NaN).
+    """
+    if isinstance(state.get("counters"), dict) and "frames" in state["counters"]:
+        return _frames(state["counters"]["frames"])
     if isinstance(state.get("eval"), dict) and "frames" in state["eval"]:
-        return int(state["eval"]["frames"])
-    return None if state.get("frames") is None else int(state["frames"])
+        return _frames(state["eval"]["frames"])
+    return None if state.get("frames") is None else _frames(state["frames"])
+
+
+def checked_policy_frames(state: dict[str, Any], path: str | os.PathLike) -> int | None:
+    """:func:`policy_frames`, its refusal naming the file ``path``."""
+    try:
+        return policy_frames(state)
+    except CheckpointError as err:
+        raise CheckpointError(f"{path}: {err}") from None
+
+
+def _frames(value: Any) -> int:
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if not number or not math.isfinite(value) or value < 0 or value != int(value):
+        raise CheckpointError(f"its frame count {value!r} is not a whole number >= 0")
+    return int(value)
 
 
 def policy_file_state(state: dict[str, Any], path: str | os.PathLike) -> dict[str, Any]:
@@ -277,7 +302,7 @@ def policy_file_state(state: dict[str, Any], path: str | os.PathLike) -> dict[st
     ``path`` names the file in errors."""
     cfg, _ = policy_from_state(state, path)  # refuses a file load_policy could not read
     policy = {k: state[k] for k in POLICY_KEYS}
-    return {**policy, "config": cfg.to_dict(), "frames": policy_frames(state)}
+    return {**policy, "config": cfg.to_dict(), "frames": checked_policy_frames(state, path)}
 
 
 def export_policy(source: str | os.PathLike, out: str | os.PathLike) -> Path:

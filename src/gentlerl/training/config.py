@@ -140,7 +140,7 @@ def make_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
 def preset_config(scale: str = "cpu", **overrides: Any) -> TrainConfig:
     """:func:`make_config` without :func:`validate` (which looks up the env's task names, so
     imports the environments): for tools that only read sizes, like the learner benchmark."""
-    if scale not in SCALES:
+    if not isinstance(scale, str) or scale not in SCALES:  # a list is no key (unhashable)
         raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
     values = TrainConfig().to_dict()
     _merge(values, SCALES[scale])

@@ -11,9 +11,7 @@ change and each change is appended to ``config_history.yaml`` in the run directo
 from __future__ import annotations
 
 import math
-import os
 import sys
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,8 +20,8 @@ import torch
 import yaml
 
 from gentlerl.config.fields import resumable
-from gentlerl.config.layout import CONFIG_HISTORY, RunLayout
-from gentlerl.files import load_yaml
+from gentlerl.config.layout import RunLayout
+from gentlerl.files import dump_yaml, load_yaml_file, write_atomic
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.migration import group_flat_config
@@ -91,6 +89,8 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
             )
         return None
     state = load_checkpoint(checkpoint)
+    if not isinstance(state.get("config"), dict):
+        raise ValueError(f"{checkpoint}: it lacks its config (a mapping); it cannot be resumed")
     changes = config_changes(group_flat_config(state["config"]), cfg.to_dict())
     structural = [n for n in changes if n not in SAFE_TO_CHANGE]
     if structural:
@@ -108,7 +108,7 @@ def finished_summary(state: Mapping[str, Any], done_marker: Path, cfg: Any) -> d
     if state["counters"]["frames"] < cfg.collector.total_frames:
         done_marker.unlink(missing_ok=True)
         return None
-    if not done_marker.exists():
+    if not done_marker.exists() or not state["eval_history"]:
         return None
     last = state["eval_history"][-1]
     print(
@@ -129,10 +129,7 @@ def record_config_changes(run_dir: Path, state: Mapping, now: Mapping) -> list[s
     history = _history(path)
     entry = {n: {"was": old, "now": new} for n, (old, new) in changes.items()}
     history.append({"resumed_at_frame": int(frames), "changed": entry})
-    fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=f".{CONFIG_HISTORY}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        yaml.safe_dump(history, f, sort_keys=False)
-    os.replace(tmp, path)
+    write_atomic(path, dump_yaml(history, sort_keys=False))
     return sorted(changes)
 
 
@@ -142,7 +139,7 @@ def _history(path: Path) -> list:
     if not path.exists():
         return []
     try:
-        history = load_yaml(path.read_text(errors="replace"))
+        history = load_yaml_file(path, errors="replace")
     except yaml.YAMLError as err:
         raise ValueError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if history is None:

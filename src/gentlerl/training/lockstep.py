@@ -13,7 +13,9 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from torchrl import timeit
@@ -24,6 +26,7 @@ from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.window_rescore import WindowRescorer
 from gentlerl.training import guards
 from gentlerl.training.logging import Progress, RunLogger
+from gentlerl.training.run_lock import RunLock, held_here
 from gentlerl.training.run_state import SeedRun
 from gentlerl.training.seeding import own_stream
 
@@ -63,6 +66,12 @@ class Lockstep:
         if not trainers:
             raise ValueError("Lockstep needs at least one Trainer (one per seed), got 0")
         self.trainers = list(trainers)
+        dirs = [Path(t.cfg.run_dir).resolve() for t in self.trainers]
+        if len(set(dirs)) != len(dirs) or len({id(t) for t in self.trainers}) != len(dirs):
+            # one run dir twice: its eval rows duplicated, one checkpoint over the other
+            raise ValueError(
+                f"each seed needs its own run_dir, got {[str(t.cfg.run_dir) for t in trainers]}"
+            )
         starts = {t.resume_state["counters"]["frames"] if t.resume_state else 0 for t in trainers}
         if len(starts) > 1:  # before anything is written
             raise ValueError(
@@ -99,7 +108,16 @@ class Lockstep:
 
     def run(self) -> list[dict[str, float]]:
         """Every seed's run to ``collector.total_frames`` (resumed where its checkpoint is);
-        each seed's final evaluation (a finished run's is read, not run again)."""
+        each seed's final evaluation (a finished run's is read, not run again). Each run
+        directory's lock is held meanwhile (:class:`~gentlerl.training.run_lock.RunLock`; one
+        its caller holds is kept)."""
+        with ExitStack() as locks:
+            for trainer in self.trainers:
+                if not held_here(trainer.cfg.run_dir):
+                    locks.enter_context(RunLock(trainer.cfg.run_dir))
+            return self._run()
+
+    def _run(self) -> list[dict[str, float]]:
         opened = [self._as(trainer, trainer.open) for trainer in self.trainers]
         finished = [summary for summary, _, _ in opened]
         if all(summary is not None for summary in finished):

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from gentlerl import keys
 from gentlerl.config.layout import LOGS, RunLayout
-from gentlerl.files import open_append, write_atomic
+from gentlerl.files import open_append, read_checked, write_atomic
 from gentlerl.functional import excess_cost
 from gentlerl.training.evaluation import OUTCOMES
 
@@ -90,7 +90,7 @@ class RunLogger:
         for path in [*self.layout.scalars.glob("**/*.csv"), episodes]:
             if not path.is_file():
                 continue
-            lines = path.read_text().splitlines(keepends=True)
+            lines = read_checked(path).splitlines(keepends=True)
             header = lines[:1] if path == episodes else []
             kept = [row for row in lines[len(header) :] if int(row.split(",", 1)[0]) <= frames]
             write_atomic(path, "".join(header + kept))

@@ -40,6 +40,7 @@ from gentlerl.training.builders import (
     write_config,
 )
 from gentlerl.training.checkpoint import remove_stale_temp_files, save_checkpoint
+from gentlerl.training.checkpoint_schema import check_trainer_state
 from gentlerl.training.config import TrainConfig, validate
 from gentlerl.training.env_probe import probe_env
 from gentlerl.training.lockstep import Lockstep, LoopPass
@@ -127,6 +128,8 @@ class Trainer:
         if self.resume_state is None:
             return None
         state, self.resume_state = self.resume_state, None
+        # every entry checked first: a NaN frame count must not read as a finished run
+        check_trainer_state(self, state, self.layout.checkpoint)
         finished = guards.finished_summary(state, self.layout.done, self.cfg)
         if finished is None:
             self.load_state_dict(state)

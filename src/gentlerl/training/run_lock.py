@@ -5,7 +5,8 @@ and overwrite each other's checkpoints. The lock file names its holder (pid and 
 second one is refused in one line saying who holds it. ``flock`` is released by the kernel when
 the holder dies, so a lock left by a killed run is stale and the next run takes it over.
 
-A run writes only files it makes: a symbolic link in the run directory (planted, say, as
+A run writes only files it makes: a run directory that is itself a symbolic link, or a symbolic
+link in the run directory (planted, say, as
 ``.lock`` or ``config.yaml`` pointing at a file elsewhere) is refused before anything is written.
 """
 
@@ -17,7 +18,18 @@ import socket
 from pathlib import Path
 
 from gentlerl.config.layout import RunLayout
-from gentlerl.files import LinkRefusedError, links_under
+from gentlerl.files import LinkRefusedError, folder_link_problem, links_under
+
+#: The run directories whose lock this process holds (resolved), so that a driver taking the
+#: locks of its runs (:class:`~gentlerl.training.lockstep.Lockstep`) does not take one its
+#: caller holds (``flock`` would refuse this process its own lock).
+#: Each entry names its process: a forked child inherits the set, not the locks.
+_HELD: set[tuple[int, Path]] = set()
+
+
+def held_here(run_dir: str | os.PathLike) -> bool:
+    """Whether this process holds the lock of ``run_dir``."""
+    return (os.getpid(), Path(run_dir).resolve()) in _HELD
 
 
 class RunLockedError(OSError):
@@ -41,6 +53,8 @@ class RunLock:
 
     def acquire(self) -> RunLock:
         run_dir = self.path.parent
+        if problem := folder_link_problem(run_dir):
+            raise LinkRefusedError(problem)
         self._made = [d for d in (run_dir, *run_dir.parents) if not d.exists()]
         run_dir.mkdir(parents=True, exist_ok=True)
         self._refuse_links(run_dir)
@@ -60,6 +74,7 @@ class RunLock:
                 os.ftruncate(fd, 0)
                 os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode())
                 self._fd = fd
+                _HELD.add((os.getpid(), run_dir.resolve()))
                 return self
             os.close(fd)
         raise RunLockedError(f"could not take the lock {self.path}: it keeps changing")
@@ -76,6 +91,7 @@ class RunLock:
 
     def release(self) -> None:
         if self._fd is not None:
+            _HELD.discard((os.getpid(), self.path.parent.resolve()))
             self.path.unlink(missing_ok=True)
             os.close(self._fd)
             self._fd = None

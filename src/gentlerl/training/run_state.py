@@ -16,6 +16,7 @@ from gentlerl.training.checkpoint import (
     load_replay_buffer_state,
     replay_buffer_state,
 )
+from gentlerl.training.checkpoint_schema import check_trainer_state
 from gentlerl.training.seeding import rng_state, set_rng_state
 
 if TYPE_CHECKING:
@@ -92,7 +93,9 @@ def trainer_state(trainer: SeedRun) -> dict[str, Any]:
 
 
 def load_trainer_state(trainer: SeedRun, state: dict[str, Any]) -> None:
-    """Restore :func:`trainer_state`'s ``state`` into ``trainer`` (its checks first)."""
+    """Restore :func:`trainer_state`'s ``state`` into ``trainer`` (its checks first: every entry
+    against the trainer, :func:`~gentlerl.training.checkpoint_schema.check_trainer_state`)."""
+    check_trainer_state(trainer, state, trainer.layout.checkpoint)
     check_critic_supports(state, trainer.loss.value_network, trainer.layout.checkpoint)
     trainer.learner.restore(TrainingState(**state["learner"]), trainer.seat)
     trainer.rewards.load_state_dict(state["intrinsic"])

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from contextlib import ExitStack
 
 from gentlerl.config.layout import RunLayout
+from gentlerl.files import folder_link_problem
 from gentlerl.training.builders import EnvFactory
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.lockstep import Lockstep
@@ -45,7 +46,9 @@ def group_problems(cfgs: Sequence[TrainConfig]) -> list[str]:
         if len(set(values)) != len(values):
             problems.append(f"each seed needs its own {name}, got {values}")
     for cfg in cfgs:  # before any seed's trainer makes its folder
-        if RunLayout(cfg.run_dir).checkpoint.exists():
+        if link := folder_link_problem(cfg.run_dir):
+            problems.append(link)
+        elif RunLayout(cfg.run_dir).checkpoint.exists():
             problems.append(
                 f"run_dir={str(cfg.run_dir)!r} holds a checkpoint: a seed group does not resume; "
                 "resume each seed's run on its own, or choose new run_dirs"

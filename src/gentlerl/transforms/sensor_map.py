@@ -20,6 +20,7 @@ from torchrl.data import Composite, Unbounded
 from torchrl.envs.transforms import Transform
 
 from gentlerl import keys
+from gentlerl.files import open_checked
 
 # Forces at or below this (N) count as "nothing touches" when the zero level is fitted.
 ZERO_FORCE = 0.05
@@ -27,6 +28,8 @@ ZERO_FORCE = 0.05
 PRESSED_FORCE = 0.5
 # A file asking for more knots than this (all channels together) is refused before allocating.
 _MAX_KNOTS = 1_000_000
+#: The largest sensor map file read (a hand's map is a few hundred KB).
+MAX_SENSOR_MAP_BYTES = 64 << 20
 
 
 def isotonic_regression(y: np.ndarray) -> np.ndarray:
@@ -246,7 +249,8 @@ class TouchSensorMap(Transform):
         """A sensor map written by :meth:`save` (also one of a ``TouchCalibration``, its earlier name:
         the file holds no class name)."""
         try:
-            blob = torch.load(Path(path), weights_only=True)
+            with open_checked(path, MAX_SENSOR_MAP_BYTES, binary=True) as f:
+                blob = torch.load(f, weights_only=True)
             sizes = (*blob["shape"], blob["n_knots"])
             if len(sizes) != 3 or math.prod(sizes) > _MAX_KNOTS:
                 raise ValueError(f"sites x channels x knots {sizes} is not a hand's sensor map")
