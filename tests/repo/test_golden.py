@@ -98,8 +98,9 @@ LATE_REL = 1e-3
 #: ICM's 200 updates run on the slow path only: on the AMD EPYC of 2026-12-07 under its native
 #: (AVX-512) code path its ``loss_actor`` leaves the recording by 2.8e-3 of the series' largest
 #: magnitude at update 183 (above :data:`LATE_REL`; under ``avx2`` and ``default`` it stays
-#: inside), while its first 50 updates agree to 2.0e-7. The default run checks those
-#: (:func:`test_the_icm_variants_first_updates_match_to_float_rounding`).
+#: inside), while its first 50 updates agree to 2.0e-7 and its other series stay within 3.6e-5.
+#: The default run checks all but that actor loss's late tier
+#: (:func:`test_the_icm_variant_matches_but_for_its_late_actor_loss`).
 VARIANTS = (
     "r+rf+rsp",
     "r+rf+rs",
@@ -157,10 +158,16 @@ def _first_index(problem: str) -> int:
     return int(found.group(1)) if found else -1
 
 
-def test_the_icm_variants_first_updates_match_to_float_rounding(tmp_path):
+def test_the_icm_variant_matches_but_for_its_late_actor_loss(tmp_path):
+    """Both tiers on every series of r+icm but ``loss_actor``'s late one (the slow test's): the
+    ICM reward switches on after ``reward_delay`` = 100 updates, so its critic's loss
+    (``loss_value_icm_reward``, late drift 3.6e-5 here) must be read past them."""
     expected = json.loads(FIXTURE.read_text())["r+icm"]
     problems = mismatches(golden_run(tmp_path, "r+icm"), expected)
-    assert [p for p in problems if _first_index(p) < EXACT_UPDATES] == []
+    late_actor = [
+        p for p in problems if p.startswith("loss_actor[") and _first_index(p) >= EXACT_UPDATES
+    ]
+    assert [p for p in problems if p not in late_actor] == []
 
 
 def test_a_one_percent_change_of_one_learning_rate_is_caught(tmp_path):
