@@ -318,3 +318,25 @@ def test_touch_sensor_map_recovers_a_different_linear_sensor_per_site_and_channe
     out = sensor_map(td)["tactile_force"]
     assert out.dtype == torch.float32
     torch.testing.assert_close(out, torch.from_numpy(query).float(), atol=1e-4, rtol=0)
+
+
+def test_icm_reward_default_eta_is_1_so_half_the_squared_error():
+    model = _ICMStub()
+    transform = ICMReward(model, _target(model, k=2.0))
+    transform.active.fill_(True)
+    td = TensorDict(
+        {
+            "observation": torch.tensor([[1.0, -1.0]]),
+            "action": torch.tensor([[0.0, 1.0]]),
+            "next": {"observation": torch.tensor([[1.0, 0.0]])},
+        },
+        [1],
+    )
+    # squared error 2 (as above) times eta / 2 = 0.5
+    torch.testing.assert_close(transform(td)["next", "icm_reward"], torch.tensor([[1.0]]))
+
+
+@pytest.mark.parametrize("unit", [0.0, -1.5, float("inf"), float("nan")])
+def test_impact_penalty_refuses_a_force_unit_that_is_not_a_finite_positive_force(unit):
+    with pytest.raises(ValueError, match=r"^ImpactPenalty: unit must be a finite force > 0, got"):
+        ImpactPenalty((1.0, 4.0), unit=unit)
