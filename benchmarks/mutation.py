@@ -57,6 +57,7 @@ PACKAGES = {
     "functional": "tests/functional",
     "rewards": "tests/rewards",
     "objectives": "tests/objectives",
+    "transforms": "tests/transforms",
 }
 
 #: Tests left out of a package's run, and why.

@@ -141,3 +141,45 @@ def test_recipes_train_py_warns_and_runs_gentlerl_train(tmp_path):
     expected = deprecation_message("python recipes/train.py", "gentlerl train")
     assert f"DeprecationWarning: {expected}" in old.stderr
     assert old.stderr.count("DeprecationWarning") == 1 and "Deprecation" not in new.stderr
+
+
+def test_touch_calibration_warns_and_is_touch_sensor_map():
+    import gentlerl.transforms
+    from gentlerl.transforms import TouchSensorMap
+
+    value, warning = _one_warning(lambda: gentlerl.transforms.TouchCalibration)
+    assert value is TouchSensorMap
+    assert str(warning.message) == deprecation_message(
+        "gentlerl.transforms.TouchCalibration", "gentlerl.transforms.TouchSensorMap"
+    )
+    assert warning.filename == __file__
+    assert "TouchCalibration" not in gentlerl.transforms.__all__
+
+    def old_import():
+        from gentlerl.transforms import TouchCalibration
+
+        return TouchCalibration
+
+    assert _one_warning(old_import)[0] is TouchSensorMap  # one warning, not the probe's too
+
+
+@pytest.mark.parametrize("old", [False, True])
+def test_gentleness_configs_recompute_surprise_warns_and_sets_rescore_surprise(old):
+    import dataclasses
+
+    from gentlerl.config import GentlenessConfig
+
+    cfg, warning = _one_warning(lambda: GentlenessConfig(recompute_surprise=old))
+    assert cfg.rescore_surprise is old
+    assert str(warning.message) == deprecation_message(
+        "GentlenessConfig(recompute_surprise=...)", "GentlenessConfig(rescore_surprise=...)"
+    )
+    assert warning.filename == __file__  # the line that passed the old keyword
+    # not a field: a config, its copies and its saved form hold rescore_surprise only
+    assert "recompute_surprise" not in {f.name for f in dataclasses.fields(cfg)}
+    assert "recompute_surprise" not in dataclasses.asdict(cfg)
+    assert dataclasses.replace(cfg, icm_eta=2.0).rescore_surprise is old
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert GentlenessConfig().rescore_surprise is True  # the new name alone: no warning
+        assert GentlenessConfig(rescore_surprise=False).rescore_surprise is False

@@ -126,3 +126,18 @@ def test_removing_a_field_or_moving_hydras_folder_is_refused(
     monkeypatch.chdir(tmp_path)
     assert message in _train([override])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_override_problems_names_each_refused_override_and_passes_the_rest():
+    from gentlerl.apps.overrides import override_problems
+
+    assert override_problems(["seed=3", "learner.gamma=0.9", "+env.kwargs.regime=easy"]) == []
+    problems = override_problems(["nope=1", "~seed", "hydra.run.dir=/tmp/x", "seed=true"])
+    assert len(problems) == 4
+    assert problems[0].startswith("unknown config field(s) ['nope']")
+    assert problems[1].startswith("~seed: a config field cannot be removed")
+    assert (
+        problems[2]
+        == "hydra.run.dir=/tmp/x: gentlerl sets hydra's folders from run_dir; set run_dir"
+    )
+    assert problems[3].startswith("seed=true must be ")

@@ -123,3 +123,20 @@ def test_bad_ray_settings_are_clear_errors():
         config(num_envs=2)
     with pytest.raises(ValueError, match="port 'x' is not a number"):
         config(ray_address="ray://head:x")
+
+
+def test_ray_problems_split_a_batch_evenly_and_keep_the_address_to_kind_ray():
+    from gentlerl.config.groups import CollectorConfig
+    from gentlerl.distributed.collector import ray_problems
+
+    ok = CollectorConfig(kind="ray", num_workers=4, frames_per_batch=100)
+    assert ray_problems(ok) == []
+    uneven = ray_problems(CollectorConfig(kind="ray", num_workers=3, frames_per_batch=100))
+    assert len(uneven) == 1
+    assert uneven[0].startswith(
+        "collector.frames_per_batch=100 must be a multiple of collector.num_workers=3"
+    )
+    # the same split is no problem for the multi-process collector
+    assert ray_problems(CollectorConfig(kind="multi", num_workers=3, frames_per_batch=100)) == []
+    stray = ray_problems(CollectorConfig(kind="single", ray_address="auto"))
+    assert len(stray) == 1 and "applies to collector.kind=ray only" in stray[0]

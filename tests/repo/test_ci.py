@@ -27,3 +27,35 @@ def test_the_suite_step_fails_unless_pytest_passes(tmp_path, pytest_exit, ci_exi
     assert ("after the suite" in done.stdout) == (ci_exit == 0)
     assert ("collected no tests (exit 5)" in done.stdout) == (pytest_exit == 5)
     assert "\nrun_suite env\n" in text and "\nrun_suite env ATEN_CPU_CAPABILITY=default" in text
+
+
+@pytest.mark.parametrize(
+    ("ci_slow", "pytest_exit", "ci_exit"), [("1", 0, 0), ("1", 5, 5), ("0", 0, 0)]
+)
+def test_ci_slow_runs_the_slow_tests_after_the_suite_and_fails_on_exit_5(
+    tmp_path, ci_slow, pytest_exit, ci_exit
+):
+    # The script from run_suite to the CI_SLOW block, with a `python` that records its arguments
+    # and exits 0 for the normal suite and `pytest_exit` for `-m slow`.
+    text = CI.read_text()
+    start = text.index("run_suite() {")
+    end = text.index("\nfi\n", text.index('if [ "${CI_SLOW:-0}" = "1" ]')) + 4
+    log = tmp_path / "calls"
+    (tmp_path / "python").write_text(
+        f'#!/bin/sh\necho "$*" >> {log}\n'
+        f'case "$*" in *"-m slow"*) exit {pytest_exit};; esac\nexit 0\n'
+    )
+    (tmp_path / "python").chmod(0o755)
+    script = f"set -euo pipefail\n{text[start:end]}\necho after the slow tests\n"
+    done = subprocess.run(
+        ["bash", "-c", script], capture_output=True, text=True, timeout=30,
+        env={"PATH": f"{tmp_path}:/usr/bin:/bin", "CI_SLOW": ci_slow},
+    )  # fmt: skip
+    calls = log.read_text().splitlines()
+    assert done.returncode == ci_exit, done.stderr
+    assert ("after the slow tests" in done.stdout) == (ci_exit == 0)
+    normal = [c for c in calls if "-m slow" not in c]
+    slow = [c for c in calls if "-m slow" in c]
+    assert len(normal) == 2 and all(c == "-m pytest -q -p no:cacheprovider" for c in normal)
+    assert slow == (["-m pytest -q -p no:cacheprovider -m slow"] if ci_slow == "1" else [])
+    assert calls[-1] == (slow[0] if slow else normal[-1])  # after the normal suite

@@ -22,6 +22,7 @@ smaller than any refactor bug (one learning rate moved by 1 %) fails the compari
 
 import csv
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -93,10 +94,16 @@ EXACT_UPDATES = 50
 EXACT_REL = 1e-5
 #: The bound on every update, relative to the largest magnitude of its series.
 LATE_REL = 1e-3
-#: The penalty-surprise variant runs by default; the other two (dynamics ensemble, ICM) are slow.
+#: The variants compared over all LOGGED updates by default (about 4 s each on the 2-core CPU).
+#: ICM's 200 updates run on the slow path only: on the AMD EPYC of 2026-12-07 under its native
+#: (AVX-512) code path its ``loss_actor`` leaves the recording by 2.8e-3 of the series' largest
+#: magnitude at update 183 (above :data:`LATE_REL`; under ``avx2`` and ``default`` it stays
+#: inside), while its first 50 updates agree to 2.0e-7 and its other series stay within 3.6e-5.
+#: The default run checks all but that actor loss's late tier
+#: (:func:`test_the_icm_variant_matches_but_for_its_late_actor_loss`).
 VARIANTS = (
     "r+rf+rsp",
-    pytest.param("r+rf+rs", marks=pytest.mark.slow),
+    "r+rf+rs",
     pytest.param("r+icm", marks=pytest.mark.slow),
 )
 
@@ -144,11 +151,30 @@ def test_first_200_logged_losses_match_the_recorded_run(tmp_path, variant):
     assert mismatches(golden_run(tmp_path, variant), expected) == []
 
 
+def _first_index(problem: str) -> int:
+    """The update a :func:`mismatches` line names (``"name[i] = ..."`` -> ``i``); -1 for a
+    line that names none (other scalars, or another number of rows)."""
+    found = re.match(r"\w+\[(\d+)\] = ", problem)
+    return int(found.group(1)) if found else -1
+
+
+def test_the_icm_variant_matches_but_for_its_late_actor_loss(tmp_path):
+    """Both tiers on every series of r+icm but ``loss_actor``'s late one (the slow test's): the
+    ICM reward switches on after ``reward_delay`` = 100 updates, so its critic's loss
+    (``loss_value_icm_reward``, late drift 3.6e-5 here) must be read past them."""
+    expected = json.loads(FIXTURE.read_text())["r+icm"]
+    problems = mismatches(golden_run(tmp_path, "r+icm"), expected)
+    late_actor = [
+        p for p in problems if p.startswith("loss_actor[") and _first_index(p) >= EXACT_UPDATES
+    ]
+    assert [p for p in problems if p not in late_actor] == []
+
+
 def test_a_one_percent_change_of_one_learning_rate_is_caught(tmp_path):
     expected = json.loads(FIXTURE.read_text())["r+rf+rsp"]
     config = {**CONFIG, "gentleness": {**CONFIG["gentleness"], "lr_model": 1.01e-3}}
     problems = mismatches(golden_run(tmp_path, "r+rf+rsp", config), expected)
-    where = {p.split("[")[0]: int(p.split("[")[1].split("]")[0]) for p in problems}
+    where = {p.split("[")[0]: _first_index(p) for p in problems}
     assert where["model_penalty"] < EXACT_UPDATES  # the exact tier sees it at once
 
 

@@ -167,3 +167,49 @@ def test_the_version_is_pyprojects_and_the_changelogs_newest_release():
     if origin != ROOT.as_uri():
         pytest.skip(f"gentlerl is installed from {origin}, not this checkout: pip install -e .")
     assert gentlerl.__version__ == pyproject.group(1)
+
+
+#: Names that left the snapshot under a deprecation shim: old -> new, each readable (with a
+#: DeprecationWarning) until gentlerl.deprecation.REMOVED_IN.
+RENAMED = {
+    "gentlerl.transforms.TouchCalibration": "gentlerl.transforms.TouchSensorMap",
+}
+
+
+def _resolve(dotted: str):
+    package, _, name = dotted.rpartition(".")
+    return getattr(importlib.import_module(package), name)
+
+
+def test_every_snapshot_name_still_resolves_or_has_a_shim():
+    """A name cannot vanish from the package behind the snapshot's back: each one the committed
+    snapshot holds is still there (its methods and properties too), whatever the compare says,
+    and each renamed one resolves through its shim to its new name."""
+    held = api_snapshot.load()
+    missing = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        for package, names in held.items():
+            module = importlib.import_module(package)
+            for name, entry in names.items():
+                if not hasattr(module, name):
+                    missing.append(f"{package}.{name}")
+                    continue
+                for member, kind in entry.get("members", {}).items():
+                    # an "attribute" may be an instance's only (a dataclass field's factory)
+                    if kind != "attribute" and not hasattr(getattr(module, name), member):
+                        missing.append(f"{package}.{name}.{member}")
+        for old, new in RENAMED.items():
+            if _resolve(old) is not _resolve(new):
+                missing.append(f"{old} (shim for {new})")
+    assert len(held) > 10 and not missing, f"snapshot names that no longer resolve: {missing}"
+
+
+@pytest.mark.parametrize(("old", "new"), sorted(RENAMED.items()))
+def test_a_renamed_name_warns_until_its_removal_release(old, new):
+    from gentlerl.deprecation import REMOVED_IN, deprecation_message
+
+    with pytest.warns(DeprecationWarning) as caught:
+        _resolve(old)
+    assert [str(w.message) for w in caught] == [deprecation_message(old, new)]
+    assert REMOVED_IN == "0.3.0"

@@ -93,15 +93,6 @@ def test_readme_python_block_runs_verbatim(index):
         assert (surprise[penalty == 0] == 0).all()  # eq. 8: no penalty, no surprise
 
 
-def test_the_readme_env_is_a_valid_torchrl_env_with_a_non_hand_force_key():
-    env = PressEnv()
-    check_env_specs(env)
-    assert (
-        env.observation_spec[FORCE].shape == (SITES, CHANNELS)
-        and keys.TOUCH not in env.observation_spec.keys()
-    )
-
-
 def readme_commands() -> list[list[str]]:
     """``gentlerl ...`` command lines of the README: in bash blocks and in inline code."""
     text = README.read_text()

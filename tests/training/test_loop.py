@@ -249,7 +249,6 @@ def test_evaluation_is_deterministic_with_hand_computed_numbers():
     assert summary["return"] == 1.0 and episodes[0] == episodes[1]
 
 
-@pytest.mark.slow
 def test_learns_the_toy_press_task(tmp_path):
     cfg = tiny_config(
         tmp_path,

@@ -3,7 +3,7 @@ tolerance, normalised curiosity and impact multiplier."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass, field
 
 from gentlerl.config.fields import setting
 from gentlerl.config.limits import (
@@ -86,6 +86,21 @@ class GentlenessConfig:
         "recompute r^sp of each sampled n-step transition with the current target model",
         ablation=True,
     )
+    #: ``rescore_surprise``'s earlier name: a keyword that warns and sets it, until 0.3.0 (not a
+    #: field: configs and checkpoints hold ``rescore_surprise`` only).
+    recompute_surprise: InitVar[bool | None] = field(default=None, kw_only=True)
+
+    def __post_init__(self, recompute_surprise: bool | None) -> None:
+        if recompute_surprise is not None:
+            from gentlerl.deprecation import warn_deprecated  # config imports no other gentlerl
+
+            warn_deprecated(
+                "GentlenessConfig(recompute_surprise=...)",
+                "GentlenessConfig(rescore_surprise=...)",
+                stacklevel=4,  # the caller of the dataclass's __init__
+            )
+            self.rescore_surprise = recompute_surprise
+
     icm_eta: float = setting(1.0, "scale eta of the ICM reward", bounds=f"[0, {MAX_WEIGHT}]")
     # Method III (beyond the paper): one stated tolerance, no per-env tuning.
     tolerance: float | None = setting(

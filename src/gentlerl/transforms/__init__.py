@@ -29,11 +29,11 @@ A variant's transforms, their models and the single-critic helpers (``SumRewards
 ``RescoreRewards``) are built by :class:`gentlerl.rewards.IntrinsicRewards`, the drop-in package.
 """
 
+from gentlerl.lazy import lazy_exports
 from gentlerl.transforms.base import ModelRewardTransform, TransitionTransform
 from gentlerl.transforms.icm import ICMReward
 from gentlerl.transforms.impact import ExcessPenalty, ImpactPenalty, NonFiniteForceError
 from gentlerl.transforms.sensor_map import TouchSensorMap
-from gentlerl.transforms.sensor_map import refuse_renamed as __getattr__  # noqa: F401 (PEP 562)
 from gentlerl.transforms.surprise import DynamicsSurprise, PenaltySurprise
 from gentlerl.transforms.wear import ForcePenalty, TorquePenalty
 
@@ -54,3 +54,11 @@ __all__ = [
     "TouchSensorMap",
     "TransitionTransform",
 ]
+
+# PEP 562: an earlier name warns and returns its new one until 0.3.0 ("calibration" now names
+# the critics' check, ``gentlerl calibration``); any other missing name fails as Python's does.
+__getattr__ = lazy_exports(
+    "gentlerl.transforms",
+    {},
+    deprecated={"TouchCalibration": ("gentlerl.transforms", "TouchSensorMap")},
+)[0]

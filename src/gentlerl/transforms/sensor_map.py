@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import NoReturn
 
 import numpy as np
 import torch
@@ -291,12 +290,3 @@ class TouchSensorMap(Transform):
                 )
         if not bool(torch.isfinite(self.raw_zero).all()):
             raise ValueError("sensor map raw_zero must be finite")
-
-
-def refuse_renamed(name: str) -> NoReturn:
-    """:mod:`gentlerl.transforms`' module ``__getattr__`` (PEP 562): its earlier name for
-    :class:`TouchSensorMap` is refused in one line naming the new one ("calibration" names the
-    critics' check, ``gentlerl calibration``), any other missing name as Python does."""
-    if name == "TouchCalibration":
-        raise ImportError("gentlerl.transforms.TouchCalibration is now TouchSensorMap")
-    raise AttributeError(f"module 'gentlerl.transforms' has no attribute {name!r}")
