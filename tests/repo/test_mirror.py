@@ -27,7 +27,6 @@ WITHOUT_A_TEST = {
     "gentlerl.apps.closing",  # the run's closing lines: tests/repo/test_clean_console.py
     "gentlerl.apps.outputs",
     "gentlerl.apps.parsing",
-    "gentlerl.apps.train",  # the hydra app: tests/config/test_config.py
     "gentlerl.config.layout",  # RunLayout: tests/training/test_builders.py, test_logging.py
     "gentlerl.config.presets",  # SCALES: tests/config/test_config.py through make_config
     "gentlerl.envs.environment",
