@@ -198,7 +198,7 @@ def _valid(name: str, value: object, integral_max: float) -> bool:
         )
     if name in ("episodes", "steps"):
         return _is_count(value)
-    if name == "frames":
-        return _is_count(value + 1) if isinstance(value, int) else False
+    if name == "frames":  # -1: none yet
+        return value == -1 or _is_count(value)
     high = integral_max if name == "integral" else math.inf
     return is_finite_number(value) and 0 <= value <= high

@@ -267,15 +267,19 @@ def derived_support(
 SOURCE_REWARD_BOUNDS: dict[str, tuple[float, float]] = {"dm_control": (0.0, 1.0)}
 
 
+def _source(env: EnvConfig) -> str | None:
+    """The source of an external env's ``env.name`` (``dm_control``), ``None`` for the hand."""
+    return None if env.name is None else env.name.partition(":")[0]
+
+
 def derives_support(env: EnvConfig, network: NetworkConfig) -> bool:
     """Whether the task head's support is derived (:func:`derived_support`):
     ``network.derive_support``, or where it is null, for an external env whose reward bounds
     are known (``env.reward_bounds``, or its source's)."""
     if network.derive_support is not None:
         return network.derive_support
-    source = None if env.name is None else env.name.partition(":")[0]
     return env.name is not None and (
-        env.reward_bounds is not None or source in SOURCE_REWARD_BOUNDS
+        env.reward_bounds is not None or _source(env) in SOURCE_REWARD_BOUNDS
     )
 
 
@@ -285,9 +289,8 @@ def task_reward_bounds(env: EnvConfig) -> tuple[float, float]:
     if env.reward_bounds is not None:
         low, high = env.reward_bounds
         return float(low), float(high)
-    source = None if env.name is None else env.name.partition(":")[0]
-    if source in SOURCE_REWARD_BOUNDS:
-        return SOURCE_REWARD_BOUNDS[source]
+    if _source(env) in SOURCE_REWARD_BOUNDS:
+        return SOURCE_REWARD_BOUNDS[_source(env)]
     raise ValueError(
         f"network.derive_support needs the task reward's per-step bounds: set env.reward_bounds="
         f"[low, high] (known for {sorted(SOURCE_REWARD_BOUNDS)} only; env.name={env.name!r})"

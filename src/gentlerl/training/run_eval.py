@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from gentlerl import keys
 from gentlerl.training import run_state
 from gentlerl.training.checkpoint import save_checkpoint
 from gentlerl.training.critic_calibration import evaluation_scalars
@@ -66,8 +65,8 @@ def steer(
     if n := trainer.cfg.gentleness.multiplier_episodes:  # the deployed policy's cost
         policy, horizon = trainer.policy, trainer.builder.horizon
         episodes = evaluate(eval_env, policy, n, horizon)[1] if multiplier.due(frames) else []
-    weight = multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
-    trainer.loss.set_head_weight(keys.PENALTY, weight)
+    multiplier.observe([e["max_impact"] for e in episodes], frames=frames)
+    _apply_head_weights(trainer)
     logger.log({f"train/{k}": v for k, v in multiplier.scalars().items()}, frames)
 
 
@@ -80,6 +79,11 @@ def _steer_lagrangian(
     if not episodes:
         return
     lagrangian.observe([e["cost"] for e in episodes], frames)
+    _apply_head_weights(trainer)
+    logger.log({f"train/{k}": v for k, v in lagrangian.scalars().items()}, frames)
+
+
+def _apply_head_weights(trainer: SeedRun) -> None:
+    """The actor's weights on the heads the run's multiplier steers, as it stands now."""
     for key, weight in trainer.rewards.head_weights().items():
         trainer.loss.set_head_weight(key, weight)
-    logger.log({f"train/{k}": v for k, v in lagrangian.scalars().items()}, frames)
