@@ -86,3 +86,17 @@ def test_tasks_limit_the_table_to_those_and_its_first_line_says_so():
     with pytest.raises(ValueError, match=r"^a.csv: --tasks touch,spin: no rows of \['spin'\]; it "
                        r"holds touch, fragile, finger-spin$"):  # fmt: skip
         results_markdown(rows, "a.csv", tasks=["touch", "spin"])
+
+
+def test_the_cost_column_is_shown_for_a_task_whose_runs_measured_one():
+    rows = [
+        _row("spin", "gentle", s, 500.0, 20.0, None) | {"cost": c} for s, c in enumerate((10, 30))
+    ]
+    rows += [_row("touch", "r", 0, 1.0, 6.0, 1.0)]  # no tolerance: no cost column
+    lines = results_markdown(rows, "a.csv").splitlines()
+    assert "cost: the episodes' steps of violation" in lines[2]
+    header = "| variant | return ± std | max impact ± std (N) | success ± std | cost ± std (steps) | seeds |"
+    assert header in lines
+    # costs 10 and 30: mean 20, sample std sqrt(((-10)^2 + 10^2) / 1) = 14.14
+    assert "| gentle | 500.00 ± 0.00 | 20.00 ± 0.00 | — | 20.00 ± 14.14 | 2 |" in lines
+    assert "| r | 1.00 | 6.00 | 1.00 | 1 |" in lines

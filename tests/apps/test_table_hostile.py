@@ -66,7 +66,7 @@ def test_fifty_thousand_tasks_take_well_under_a_few_seconds(tmp_path):
     rows = [
         {**_row(task=f"t{i}", cell=f"t{i}/r", seed=s), "return": 1.0 + s, "seed": s,
          "frames": 100, "success_rate": None, "broken_rate": None, "max_impact": None,
-         "wall_s": None, "grouped": None}
+         "wall_s": None, "grouped": None, "cost": None}
         for i in range(50_000) for s in (0, 1)
     ]  # fmt: skip
     start = time.perf_counter()

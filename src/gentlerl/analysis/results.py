@@ -25,8 +25,10 @@ from gentlerl.files import FORMULA_START, open_checked, write_atomic
 #: The results file's columns, in order: which run (suite, cell = task/variant, seed), how long
 #: it trained (frames), its final evaluation (mean return, success and broken rates, mean of the
 #: episodes' largest impact in N), its training wall clock (s; a seed group's seeds share one
-#: clock), whether its cell ran as one seed group (1) or seed by seed (0), and what measured it
-#: (the package version, the git commit, the UTC date).
+#: clock), whether its cell ran as one seed group (1) or seed by seed (0), what measured it
+#: (the package version, the git commit, the UTC date), and the final evaluation's mean episode
+#: cost (steps of violation, :func:`~gentlerl.functional.excess_cost` summed; empty for a run
+#: without ``gentleness.tolerance``).
 RESULT_COLUMNS = (
     "suite",
     "cell",
@@ -43,7 +45,10 @@ RESULT_COLUMNS = (
     "version",
     "commit",
     "date",
+    "cost",
 )
+#: Columns a results file written before them may lack (read as not measured).
+ADDED_COLUMNS = ("cost",)
 #: Columns holding a number; an empty one is "not measured" (``None``).
 NUMERIC = (
     "seed",
@@ -54,6 +59,7 @@ NUMERIC = (
     "max_impact",
     "wall_s",
     "grouped",
+    "cost",
 )
 #: Numeric columns holding integers.
 INTEGER = ("seed", "frames", "grouped")
@@ -74,8 +80,9 @@ def _mean(values: Sequence[float]) -> float | None:
 
 
 def run_result(run_dir: str | Path) -> dict[str, float | None]:
-    """``frames``, ``return``, ``success_rate``, ``broken_rate``, ``max_impact`` of the run's
-    final evaluation and its ``wall_s``, read from the run directory (a ``ValueError`` naming
+    """``frames``, ``return``, ``success_rate``, ``broken_rate``, ``max_impact`` and ``cost``
+    (``None`` where the run measured none) of the run's final evaluation and its ``wall_s``,
+    read from the run directory (a ``ValueError`` naming
     it when it holds no evaluation)."""
     run = load_run(run_dir)
     rows = final_eval_episodes(run)
@@ -92,6 +99,7 @@ def run_result(run_dir: str | Path) -> dict[str, float | None]:
         "broken_rate": _mean(rows["broken"]),
         "max_impact": _mean(rows["max_impact"]),
         "wall_s": float(wall[-1]) if len(wall) else None,
+        "cost": _mean(rows["cost"]) if "cost" in (rows.dtype.names or ()) else None,
     }
 
 
@@ -158,7 +166,8 @@ def read_results(path: str | Path) -> list[dict[str, Any]]:
     path = Path(path)
     with open_checked(path, newline="", errors="replace") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in RESULT_COLUMNS if c not in (reader.fieldnames or ())]
+        held = tuple(reader.fieldnames or ())
+        missing = [c for c in RESULT_COLUMNS if c not in held and c not in ADDED_COLUMNS]
         if missing:
             raise ValueError(f"{path}: not a suite's results file (no column {', '.join(missing)})")
         rows, seen = [], set()
@@ -166,11 +175,11 @@ def read_results(path: str | Path) -> list[dict[str, Any]]:
             if line > MAX_ROWS + 1:
                 raise ValueError(f"{path}: more than {MAX_ROWS:,} rows")
             where = f"{path}:{line}"
-            if None in raw or any(raw[c] is None for c in RESULT_COLUMNS):
-                raise ValueError(f"{where}: expected {len(RESULT_COLUMNS)} fields")
-            row: dict[str, Any] = {c: raw[c] for c in RESULT_COLUMNS}
+            if None in raw or any(raw[c] is None for c in held):
+                raise ValueError(f"{where}: expected {len(held)} fields")
+            row: dict[str, Any] = {c: raw.get(c, "") for c in RESULT_COLUMNS}
             for column in NUMERIC:
-                row[column] = _number(raw[column], column, where)
+                row[column] = _number(row[column], column, where)
             if row["seed"] is None:
                 raise ValueError(f"{where}: the seed is empty")
             key = (row["suite"], row["cell"], row["seed"])

@@ -42,6 +42,8 @@ COLUMNS = (
     ("max impact ± std (N)", "max_impact"),
     ("success ± std", "success_rate"),
 )
+#: The safe-RL cost column, shown for a task whose runs measured a cost (a tolerance was set).
+COST_COLUMN = ("cost ± std (steps)", "cost")
 #: What a cell shows when no seed measured it (an env without a success outcome).
 NOT_MEASURED = "—"
 
@@ -115,17 +117,22 @@ def markdown_cell(value: Any) -> str:
     return "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in text)
 
 
+def _has_cost(rows: Sequence[Mapping[str, Any]]) -> bool:
+    return any(row.get("cost") is not None for row in rows)
+
+
 def _task_table(task: str, rows: Sequence[Mapping[str, Any]]) -> list[str]:
     """One task's heading and table: a row per variant (the order the CSV lists them)."""
     frames = ", ".join(str(f) for f in sorted({row["frames"] for row in rows} - {None}))
+    columns = (*COLUMNS, COST_COLUMN) if _has_cost(rows) else COLUMNS
     lines = [
         f"**{markdown_cell(task)}**, {frames or '?'} frames",
         "",
-        "| variant | " + " | ".join(header for header, _ in COLUMNS) + " | seeds |",
-        "| --- |" + " --- |" * (len(COLUMNS) + 1),
+        "| variant | " + " | ".join(header for header, _ in columns) + " | seeds |",
+        "| --- |" + " --- |" * (len(columns) + 1),
     ]
     for variant, seeds in _grouped(rows, "variant").items():
-        cells = [format_mean_std([row[column] for row in seeds]) for _, column in COLUMNS]
+        cells = [format_mean_std([row.get(column) for row in seeds]) for _, column in columns]
         lines.append(f"| {markdown_cell(variant)} | " + " | ".join(cells) + f" | {len(seeds)} |")
     return [*lines, ""]
 
@@ -158,7 +165,13 @@ def results_markdown(
         GENERATED.format(source=source),
         "",
         "Mean ± sample std (ddof=1) over seeds of each run's final evaluation: mean return, "
-        "mean of the episodes' largest impact, success rate.",
+        "mean of the episodes' largest impact, success rate"
+        + (
+            "; cost: the episodes' steps of violation (impact above the tolerance in "
+            "tolerances, capped at 1 a step, summed)."
+            if _has_cost(rows)
+            else "."
+        ),
         "",
     ]
     for suite, in_suite in suites.items():

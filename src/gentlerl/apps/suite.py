@@ -194,9 +194,12 @@ def _summary(rows: Sequence[dict]) -> str:
     from gentlerl.analysis.results_table import format_mean_std
 
     def cell(column: str) -> str:
-        return format_mean_std([row[column] for row in rows])
+        return format_mean_std([row.get(column) for row in rows])
 
-    return f"return {cell('return')}, max impact {cell('max_impact')} N, success {cell('success_rate')}"
+    line = f"return {cell('return')}, max impact {cell('max_impact')} N, success {cell('success_rate')}"
+    return line + (
+        f", cost {cell('cost')}" if any(row.get("cost") is not None for row in rows) else ""
+    )
 
 
 def _train(plan: PlannedCell, env_factory: Callable | None) -> None:

@@ -20,6 +20,7 @@ from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from gentlerl import keys
+from gentlerl.functional import excess_cost
 from gentlerl.transforms import ImpactPenalty
 
 #: A run's evaluation env is seeded with the run's seed plus this (apart from every worker's).
@@ -79,30 +80,36 @@ def rollout_episodes(
 OUTCOMES = (keys.SUCCESS, keys.BROKEN)
 
 
-def episode_stats(episode: TensorDictBase) -> dict[str, float]:
+def episode_stats(episode: TensorDictBase, tolerance: float | None = None) -> dict[str, float]:
     """``success`` and ``broken`` (1.0 / 0.0 whether set at some step; left out where the env
     does not write them), ``max_impact`` (N, eq. 1) and the task ``return`` of one ``[T]``
-    episode of :func:`rollout_episodes` (the env must write ``impact``)."""
+    episode of :func:`rollout_episodes` (the env must write ``impact``); with a ``tolerance``
+    (N) also its safe-RL ``cost``, the sum over its steps of
+    :func:`~gentlerl.functional.excess_cost` (steps of violation)."""
     nxt = episode.get("next")
     outcomes = {key: float(nxt.get(key).any()) for key in OUTCOMES if key in nxt.keys()}
-    return {
-        **outcomes,
-        "max_impact": float(nxt.get(keys.IMPACT).max()),
-        "return": float(nxt.get(keys.REWARD).sum()),
-    }
+    impact = nxt.get(keys.IMPACT)
+    stats = {**outcomes, "max_impact": float(impact.max())}
+    stats["return"] = float(nxt.get(keys.REWARD).sum())
+    if tolerance is not None:  # [T, sites]: each step's cost, summed over the episode
+        stats["cost"] = float(excess_cost(impact.reshape(len(nxt), -1), tolerance).sum())
+    return stats
 
 
 def summarize_episodes(
-    episodes: list[TensorDictBase],
+    episodes: list[TensorDictBase], tolerance: float | None = None
 ) -> tuple[dict[str, float], list[dict[str, float]]]:
     """The summary (``success_rate`` and ``broken_rate`` where the env defines them,
-    ``max_impact_mean``, ``return``) and the :func:`episode_stats` of each of ``episodes``."""
-    per_episode = [episode_stats(e) for e in episodes]
+    ``max_impact_mean``, ``return``, and with a ``tolerance`` the mean ``cost``) and the
+    :func:`episode_stats` of each of ``episodes``."""
+    per_episode = [episode_stats(e, tolerance) for e in episodes]
     n = max(len(per_episode), 1)
     defined = [k for k in OUTCOMES if per_episode and all(k in e for e in per_episode)]
     summary = {f"{k}_rate": sum(e[k] for e in per_episode) / n for k in defined}
     summary["max_impact_mean"] = sum(e["max_impact"] for e in per_episode) / n
     summary["return"] = sum(e["return"] for e in per_episode) / n
+    if tolerance is not None:
+        summary["cost"] = sum(e["cost"] for e in per_episode) / n
     return summary, per_episode
 
 

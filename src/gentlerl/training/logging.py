@@ -29,7 +29,7 @@ from gentlerl.functional import excess_cost
 from gentlerl.training.evaluation import OUTCOMES
 
 #: The columns of an episodes CSV; ``success`` and ``broken`` only where the env defines them.
-EVAL_COLUMNS = ("frames", "episode", "success", "broken", "max_impact", "return")
+EVAL_COLUMNS = ("frames", "episode", "success", "broken", "max_impact", "return", "cost")
 
 
 class RunLogger:

@@ -28,7 +28,7 @@ def evaluate_run(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict[str
     episodes = trainer.cfg.logging.eval_episodes
     policy, horizon = trainer.policy, trainer.builder.horizon
     rollouts = rollout_episodes(eval_env, policy, episodes, horizon)
-    summary, per_episode = summarize_episodes(rollouts)
+    summary, per_episode = summarize_episodes(rollouts, trainer.cfg.gentleness.tolerance)
     frames = trainer.counters["frames"]
     logger.log({f"eval/{k}": v for k, v in summary.items()}, frames)
     # The same episodes: each critic head's predicted Q against its realised return.
