@@ -17,7 +17,7 @@ for run in "$src"/*/*/seed*; do
   rel=${run#"$src"/}
   mkdir -p "$dst/$rel"
   cp "$run/eval_episodes.csv" "$run/config.yaml" "$dst/$rel/"
-  for f in eval/success_rate eval/max_impact_mean eval/return train/lagrange_multiplier train/episode_cost; do
+  for f in eval/success_rate eval/max_impact_mean eval/return eval/cost train/lagrange_multiplier train/episode_cost; do
     if [ -f "$run/logs/scalars/$f.csv" ]; then
       mkdir -p "$dst/$rel/$(dirname $f)"
       cp "$run/logs/scalars/$f.csv" "$dst/$rel/$f.csv"

@@ -180,3 +180,15 @@ def test_the_top_atom_index_stays_in_range_where_bfloat16_rounds_it_past_the_end
     one = torch.tensor(1.0, dtype=torch.bfloat16)
     out = categorical_projection(probs, 10 * one, one, v_min=-1.0, v_max=1.0)
     assert out[-1].item() == 1.0 and (out[:-1] == 0).all()
+
+
+@pytest.mark.parametrize("bad", ["reward", "discount"])
+def test_a_nan_reward_or_discount_is_named_not_an_index_of_minus_two_to_the_63(bad):
+    """The finding: a NaN reward failed as "index -9223372036854775808 is out of bounds"."""
+    probs = torch.full((2, 5), 0.2)
+    values = {"reward": torch.tensor([0.5, 0.5]), "discount": torch.tensor([0.9, 0.9])}
+    values[bad] = torch.tensor([0.5, float("nan")])
+    with pytest.raises(ValueError, match="a reward or discount is NaN"):
+        categorical_projection(probs, values["reward"], values["discount"], -1.0, 1.0)
+    inf = categorical_projection(probs, torch.tensor([float("inf")] * 2), torch.zeros(2), -1.0, 1.0)
+    assert torch.equal(inf, torch.tensor([[0.0, 0, 0, 0, 1]] * 2))  # +inf: clipped to v_max

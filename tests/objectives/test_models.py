@@ -341,3 +341,12 @@ def test_ensemble_losses_with_detached_params_computes_without_gradient_or_warni
     assert not out["loss_penalty"].requires_grad
     torch.testing.assert_close(out["loss_penalty"], _nll_by_hand(loss, td).mean())
     assert not any(t.requires_grad for t in target)
+
+
+@pytest.mark.parametrize("interval", [-1, 1.5, "5", True, None])
+def test_a_target_update_interval_that_never_copies_is_refused(interval):
+    """TorchRL's HardUpdate takes any of these and then never copies the target (the counter
+    never equals -1, 1.5 or "5"): the surprise would read the initial model for ever."""
+    loss = EnsembleModelLoss(PenaltyModel(3, 2, ensemble_size=2, hidden=(4,)), name="penalty")
+    with pytest.raises(ValueError, match=rf"interval must be an integer >= 0.*got {interval!r}"):
+        ModelHardUpdate(loss, value_network_update_interval=interval)

@@ -107,6 +107,9 @@ def test_a_model_step_refuses_a_batch_without_its_seeds_and_bad_settings():
         ModelStep([torch.nn.Linear(2, 2)], 1e-2)
     with pytest.raises(ValueError, match="cudagraphs needs the models on a CUDA device"):
         ModelStep(_losses((0,)), 1e-2, cudagraphs=True)
+    (loss,) = _losses((0,))  # the finding: one model trained as two seeds, each step twice
+    with pytest.raises(ValueError, match="seeds 0 and 1 hold the same tensor .* passed twice"):
+        ModelStep([loss, loss], 1e-2)
     for lr in (float("nan"), float("inf"), 0.0, -1e-3, True):
         with pytest.raises(ValueError, match=f"lr must be a finite number > 0, got {lr!r}"):
             ModelStep(_losses((0,)), lr)

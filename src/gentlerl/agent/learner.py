@@ -90,11 +90,6 @@ class Learner:
     ) -> None:
         losses = [loss] if isinstance(loss, MultiHeadD4PGLoss) else list(loss)
         _check_options(len(losses), lr_actor, lr_critic, target_update_period)
-        if len({id(seed) for seed in losses}) != len(losses):  # its rows would share one module
-            raise ValueError(
-                f"Learner got one loss several times among its {len(losses)}: each seed needs "
-                "its own loss (its own networks)"
-            )
         device = next(losses[0].parameters()).device
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"learner.cudagraphs needs a CUDA learner, this one is on {device}")

@@ -52,6 +52,10 @@ def categorical_projection(
 
     Returns:
         ``[..., N]`` projected target probabilities (no gradient flows through the atom indices).
+
+    Raises:
+        ValueError: a NaN ``reward`` or ``discount`` (on the CPU; an infinite one is clipped to
+            the support's end like any other).
     """
     num_atoms = next_probs.shape[-1]
     if num_atoms < 2:
@@ -73,7 +77,15 @@ def categorical_projection(
     upper = (lower + 1).clamp(max=num_atoms - 1)
     index = torch.cat([lower, upper], -1).long()
     mass = torch.cat([probs * (1.0 - upper_weight), probs * upper_weight], -1)
-    return torch.zeros_like(probs).scatter_add_(-1, index, mass)
+    try:
+        return torch.zeros_like(probs).scatter_add_(-1, index, mass)
+    except RuntimeError as error:  # a NaN position casts to index -2**63 (no sync to test it first)
+        if "out of bounds" not in str(error):
+            raise
+        raise ValueError(
+            "categorical_projection: a reward or discount is NaN (its moved atom has no index on "
+            "the support); check the batch's rewards"
+        ) from error
 
 
 def _check_float_support(v_min: float | torch.Tensor, v_max: float | torch.Tensor) -> None:

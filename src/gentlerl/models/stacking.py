@@ -45,11 +45,21 @@ def _path(key: str | tuple[str, ...]) -> tuple[str, ...]:
 def share_rows(stacked: TensorDictBase, per_seed: Sequence[TensorDictBase]) -> None:
     """Point every tensor of seed s at row s of ``stacked`` (``tensor.data = row``): the same
     tensor objects (so modules and optimisers holding them stay valid) now read, and are
-    written by, the batched step's parameters."""
+    written by, the batched step's parameters. Refused (one line) when two seeds hold the same
+    tensor: the same loss or model passed twice would train one module as two seeds."""
     if len(per_seed) != stacked.batch_size[0]:
         raise ValueError(
             f"share_rows: {len(per_seed)} seeds for a stack of {stacked.batch_size[0]} rows"
         )
+    owner: dict[int, int] = {}
+    for s, own in enumerate(per_seed):
+        for key, tensor in own.items(True, True):
+            first = owner.setdefault(id(tensor), s)
+            if first != s:
+                raise ValueError(
+                    f"seeds {first} and {s} hold the same tensor {key!r}: each seed needs its "
+                    "own networks (one loss passed twice?)"
+                )
     for s, own in enumerate(per_seed):
         for key, tensor in own.items(True, True):
             tensor.data = stacked.get(key).data[s]

@@ -30,8 +30,20 @@ class ModelHardUpdate(HardUpdate):
     Args:
         loss_module: the model's loss (its ``model_params`` and ``target_model_params``).
         value_network_update_interval: as TorchRL's: the copy comes on every
-            ``(interval + 1)``-th :meth:`step` call.
+            ``(interval + 1)``-th :meth:`step` call; an integer >= 0 (TorchRL's ``HardUpdate``
+            takes any number and, with ``-1``, ``1.5`` or ``"5"``, never copies).
     """
+
+    def __init__(
+        self, loss_module: LossModule, *, value_network_update_interval: int = 1000
+    ) -> None:
+        interval = value_network_update_interval
+        if isinstance(interval, bool) or not isinstance(interval, int) or interval < 0:
+            raise ValueError(
+                f"value_network_update_interval must be an integer >= 0 (the target is copied "
+                f"every interval + 1 steps), got {interval!r}"
+            )
+        super().__init__(loss_module, value_network_update_interval=interval)
 
     def step(self) -> None:
         copies = self.counter == self.value_network_update_interval

@@ -22,9 +22,12 @@ here are plain pickles over a pipe: the weights and a 200-frame batch are a few 
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
 import pickle
 import signal
+import sys
 import traceback
 from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection
@@ -49,9 +52,24 @@ def _receive(conn: Connection) -> Any:
     return pickle.loads(conn.recv_bytes())
 
 
-def _serve(conn: Connection, setup: bytes) -> None:
+#: Linux's ``prctl`` option: the signal the kernel sends a process when its parent ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """End this child with its parent, however the parent ends (a SIGKILL, a SIGTERM caught
+    during the child's start): on Linux the kernel sends it SIGKILL (``PR_SET_PDEATHSIG``);
+    a parent gone before that was set ends it here. Elsewhere the closed pipe ends it."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _serve(conn: Connection, setup: bytes, parent: int) -> None:
     """The child: build the collector, then answer ``seed`` / ``next`` / ``close`` requests
-    with ``("ok", result)`` or ``("error", traceback)``."""
+    with ``("ok", result)`` or ``("error", traceback)``; it never outlives ``parent``."""
+    _die_with_parent(parent)
     torch.set_num_threads(1)
     try:
         make_collector, policy = pickle.loads(setup)
@@ -121,7 +139,7 @@ class ProcessCollector:
         context = multiprocessing.get_context("spawn")
         self._conn, child_conn = context.Pipe()
         self._process = context.Process(
-            target=_serve, args=(child_conn, setup), name="collector", daemon=True
+            target=_serve, args=(child_conn, setup, os.getpid()), name="collector", daemon=True
         )
         self._process.start()
         child_conn.close()
