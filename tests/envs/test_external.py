@@ -297,7 +297,7 @@ def test_evaluate_runs_a_finger_policy_on_its_own_env(tmp_path):
 
 
 def test_make_external_env_is_exported_by_the_envs_package():
-    """The README names ``make_external_env`` among ``gentlerl.envs``' public names: the package
+    """The docs name ``make_external_env`` among ``gentlerl.envs``' public names: the package
     exports the module's function itself (lazily, as its other names)."""
     import gentlerl.envs
     from gentlerl.envs import make_external_env as exported

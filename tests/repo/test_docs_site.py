@@ -18,7 +18,7 @@ CONFIG = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
 #: Packages without an API page, and why. A new package gets a page (``docs/site/api/<name>.md``
 #: and a nav line in mkdocs.yml) or a line here.
 NOT_ON_THE_SITE = {
-    "apps": "the commands: README.md's command table and each command's --help",
+    "apps": "the commands: the configuration page's command table and each command's --help",
     "analysis": "what the commands compute from run directories, not an API",
     "distributed": "Ray collectors the config selects (docs/DISTRIBUTED.md)",
 }

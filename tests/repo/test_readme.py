@@ -1,4 +1,6 @@
-"""The README's code runs as shown: its python blocks verbatim, its ``gentlerl`` commands parse.
+"""The README's code runs as shown: its python blocks verbatim, its ``gentlerl`` commands parse;
+so does the code of the docs site's pages that a new user reads next (the drop-in page with the
+finger-spin example, the quick start and configuration pages).
 
 The python blocks build their own envs (the hand, dm_control's finger); :class:`PressEnv`, a
 small env that is not the hand (3 sensor sites with 2 channels each under the key ``"force"``, a
@@ -22,13 +24,29 @@ from gentlerl import cli, keys
 from gentlerl.functional import impact, impact_penalty
 from gentlerl.training.config import iter_fields
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+ROOT = Path(__file__).resolve().parents[2]
+README = ROOT / "README.md"
+#: The docs site's pages whose code a new user runs: the drop-in (with the finger example), the
+#: quick start and the configuration page.
+DROP_IN = ROOT / "docs" / "site" / "torchrl.md"
+PAGES = (
+    README,
+    DROP_IN,
+    ROOT / "docs" / "site" / "index.md",
+    ROOT / "docs" / "site" / "configuration.md",
+)
 SITES, CHANNELS, FORCE = 3, 2, "force"
 
 
-def code_blocks(language: str) -> list[str]:
-    """Every fenced ```language block of the README, in order."""
-    return re.findall(rf"^```{language}\n(.*?)^```", README.read_text(), re.M | re.S)
+def code_blocks(language: str, path: Path = README) -> list[str]:
+    """Every fenced ```language block of ``path`` (the README), in order."""
+    return re.findall(rf"^```{language}\n(.*?)^```", path.read_text(), re.M | re.S)
+
+
+def first_screen(text: str) -> str:
+    """What a reader sees first: the README up to the first ``## `` heading after its quick start."""
+    quick = text.index("## Quick start")
+    return text[: text.index("\n## ", quick + 1)]
 
 
 class PressEnv(EnvBase):
@@ -70,13 +88,22 @@ class PressEnv(EnvBase):
 
 def test_the_readme_has_python_blocks():
     assert code_blocks("python"), "README.md has no ```python block"
+    assert len(code_blocks("python", DROP_IN)) == 2, "the drop-in page's two examples are gone"
 
 
-@pytest.mark.parametrize("index", range(len(code_blocks("python"))))
-def test_readme_python_block_runs_verbatim(index):
+PYTHON_BLOCKS = [
+    (path, index) for path in (README, DROP_IN) for index in range(len(code_blocks("python", path)))
+]
+
+
+@pytest.mark.parametrize(
+    ("path", "index"), PYTHON_BLOCKS, ids=[f"{p.name}:{i}" for p, i in PYTHON_BLOCKS]
+)
+def test_readme_python_block_runs_verbatim(path, index):
     torch.manual_seed(0)
     namespace = {"my_env": PressEnv()}
-    exec(compile(code_blocks("python")[index], f"README.md block {index}", "exec"), namespace)
+    block = code_blocks("python", path)[index]
+    exec(compile(block, f"{path.name} block {index}", "exec"), namespace)
     for name, value in namespace.items():  # every rollout / batch it made has checked rewards
         if isinstance(value, TensorDictBase) and ("next", keys.PENALTY) in value.keys(True):
             force_key = FORCE if FORCE in value.keys() else keys.TOUCH
@@ -93,10 +120,11 @@ def test_readme_python_block_runs_verbatim(index):
         assert (surprise[penalty == 0] == 0).all()  # eq. 8: no penalty, no surprise
 
 
-def readme_commands() -> list[list[str]]:
-    """``gentlerl ...`` command lines of the README: in bash blocks and in inline code."""
-    text = README.read_text()
-    lines = [ln for block in code_blocks("bash") for ln in block.replace("&&", "\n").splitlines()]
+def readme_commands(path: Path = README) -> list[list[str]]:
+    """``gentlerl ...`` command lines of ``path``: in bash blocks and in inline code."""
+    text = path.read_text()
+    blocks = code_blocks("bash", path)
+    lines = [ln for block in blocks for ln in block.replace("&&", "\n").splitlines()]
     lines += re.findall(r"`(gentlerl(?:-train)? [^`]*)`", text)
     commands = [shlex.split(ln.split("#")[0]) for ln in lines]
     commands = [c for c in commands if c and c[0] in ("gentlerl", "gentlerl-train")]
@@ -104,14 +132,17 @@ def readme_commands() -> list[list[str]]:
     return [["gentlerl", "train", *c[1:]] if c[0] == "gentlerl-train" else c for c in commands]
 
 
-def test_readme_gentlerl_commands_name_real_subcommands_options_and_config_fields():
-    commands = readme_commands()
-    assert ["gentlerl", "train"] in commands  # the quick start: the default recipe as it is
+@pytest.mark.parametrize("path", PAGES, ids=[p.name for p in PAGES])
+def test_readme_gentlerl_commands_name_real_subcommands_options_and_config_fields(path):
+    commands = readme_commands(path)
+    if path in (README, PAGES[2]):  # the quick start: the default recipe as it is
+        assert ["gentlerl", "train"] in commands
+    assert commands, f"{path.name} names no gentlerl command"
     fields = {name for name, _ in iter_fields()}
     for command in commands:
         assert command[1] in cli.COMMANDS, command
         if command[1] == "train":  # hydra overrides: every key is a config field
-            overrides = [a for a in command[2:] if a not in ("KEY=VALUE", "...", "-m")]
+            overrides = [a for a in command[2:] if a not in ("KEY=VALUE", "...", "-m", "--help")]
             # "+" adds a key; a key inside the env.kwargs mapping names that field.
             names = {a.split("=")[0].lstrip("+") for a in overrides}
             names = {"env.kwargs" if n.startswith("env.kwargs.") else n for n in names}
@@ -125,13 +156,13 @@ def test_readme_gentlerl_commands_name_real_subcommands_options_and_config_field
 
 
 def test_readme_finger_block_builds_a_float32_env_with_force_in_newtons():
-    """The second example, on the real ``DMControlEnv("finger", "spin")``: specs pass, every
-    float entry is float32, force = expm1(touch) as [2 sites, 1 channel], and the flat
-    observation is position, velocity, touch."""
-    (block,) = [b for b in code_blocks("python") if "DMControlEnv" in b]
+    """The drop-in page's second example (once the README's), on the real
+    ``DMControlEnv("finger", "spin")``: specs pass, every float entry is float32, force =
+    expm1(touch) as [2 sites, 1 channel], and the flat observation is position, velocity, touch."""
+    (block,) = [b for b in code_blocks("python", DROP_IN) if "DMControlEnv" in b]
     torch.manual_seed(0)
     namespace: dict = {}
-    exec(compile(block, "README.md finger block", "exec"), namespace)
+    exec(compile(block, "torchrl.md finger block", "exec"), namespace)
     finger, rollout = namespace["finger"], namespace["rollout"]
     check_env_specs(finger)
     assert finger.observation_spec[FORCE].shape == (2, 1)
@@ -148,28 +179,68 @@ def test_readme_finger_block_builds_a_float32_env_with_force_in_newtons():
 
 
 def test_the_first_screen_numbers_stand_in_the_files_they_cite():
-    """The hand's measured table is generated from the re-measure suite's CSV (its numbers are
-    checked against the CSV by tests/repo/test_generated_tables.py); the default recipe's
-    sentence beside it quotes docs/RESULTS.md."""
+    """The default recipe's numbers on the first screen are the dated ones of docs/RESULTS.md's
+    "The README's numbers"; the hand's measured table is generated from the re-measure suite's
+    CSV (its numbers are checked against the CSV by tests/repo/test_generated_tables.py)."""
     text = README.read_text()
-    head = text[: text.index("## Install notes")]
-    suite_csv = "experiments/suites/after_fix/results.csv --tasks touch,fragile"
-    assert f"<!-- generated by `gentlerl table {suite_csv}`" in head, "the hand's table is gone"
-    sentence = re.search(
-        r"The default recipe at 100k frames, after the fix: (.*?)\(docs/", head, re.S
-    )
-    assert sentence, "the default recipe's sentence is gone"
+    head = first_screen(text)
+    sentence = re.search(r"\*\*What you get\*\*: (.*?)```", head, re.S)
+    assert sentence, "the first screen's 'What you get' is gone"
     numbers = re.findall(r"\d+\.\d+", sentence[1])
-    results = (README.parent / "docs" / "RESULTS.md").read_text()
-    assert len(numbers) == 4 and all(f"at {n} N" in results for n in numbers[1:]), numbers
-    assert len(text.splitlines()) < 300  # a README, not a lab notebook
+    results = (ROOT / "docs" / "RESULTS.md").read_text()
+    dated = results[results.index("## The README's numbers") :]
+    dated = " ".join(dated[: dated.index("\n## ")].split())
+    assert len(numbers) == 6, numbers  # 3 seeds, r's press, the shipped policy's success, impact
+    assert all(n in dated for n in numbers), [n for n in numbers if n not in dated]
+    suite_csv = "experiments/suites/after_fix/results.csv --tasks touch,fragile"
+    assert f"<!-- generated by `gentlerl table {suite_csv}`" in text, "the hand's table is gone"
+
+
+def test_the_readme_is_a_readme_not_a_lab_notebook():
+    """About 150 lines and a short first screen: under 200 words of prose (outside code blocks
+    and comments) and under 300 in all, room left for the pasted run (the README had 299 lines
+    and a 652-word first screen); no research-log words on it."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= 165
+    screen = first_screen(text)
+    prose = re.sub(r"<!--.*?-->", "", re.sub(r"^```.*?^```", "", screen, flags=re.M | re.S))
+    assert len(prose.split()) < 200 and len(screen.split()) < 300
+    assert "after the fix" not in text.lower() and "†" not in text
+    assert not re.search(r"\b[0-9a-f]{7,40}\b", text), "a commit hash on the front page"
+    log = (ROOT / "docs" / "log").resolve()  # the research log's folder
+    links = [(ROOT / link).resolve() for link in re.findall(r"\]\(([^)#]+)", text)]
+    assert sum(link.is_relative_to(log) for link in links) <= 2, "links into the research log"
+
+
+def test_the_hand_table_states_the_suites_settings_not_the_defaults():
+    """The table is the suite's (its random frames, curiosity delay and frames, from the suite
+    file), and the README says so beside the defaults of the code."""
+    import yaml
+
+    from gentlerl.config import CollectorConfig, GentlenessConfig
+
+    suite = yaml.safe_load((ROOT / "experiments" / "suites" / "after_fix.yaml").read_text())
+    settings = dict(s.split("=") for s in suite["set"] + suite["tasks"]["touch"])
+    stated = " ".join(README.read_text().split())
+    suite_part = (
+        f"({int(settings['collector.total_frames']) // 1000}k frames, "
+        f"{int(settings['collector.init_random_frames']) // 1000}k random frames, "
+        f"curiosity delay {int(settings['gentleness.reward_delay']):,})"
+    )
+    defaults = (
+        f"({CollectorConfig().total_frames // 1000}k frames, "
+        f"{CollectorConfig().init_random_frames // 1000}k random frames, "
+        f"curiosity delay {GentlenessConfig().reward_delay:,})"
+    )
+    assert f"at its own settings {suite_part}, not the defaults {defaults}" in stated
 
 
 def test_the_gpu_learner_rate_stands_in_the_benchmark_results():
-    """The install notes' paper-scale GPU rate is the one benchmarks/RESULTS.md measured."""
-    match = re.search(r"\(([\d,]+) paper-scale updates/s on an H200", README.read_text())
-    assert match, "the README's GPU learner sentence is gone"
-    results = (README.parent / "benchmarks" / "RESULTS.md").read_text()
+    """The configuration page's paper-scale GPU rate is the one benchmarks/RESULTS.md measured."""
+    page = (ROOT / "docs" / "site" / "configuration.md").read_text()
+    match = re.search(r"\(([\d,]+) paper-scale updates/s on an H200", page)
+    assert match, "the configuration page's GPU learner sentence is gone"
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
     assert f"**{match.group(1)}" in results or f"{match.group(1)}–" in results
 
 
