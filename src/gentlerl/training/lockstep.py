@@ -20,7 +20,7 @@ from typing import Any
 
 from torchrl import timeit
 
-from gentlerl.agent import Learner
+from gentlerl.agent.builder import configured_learner
 from gentlerl.models.stacking import seed_stack
 from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.window_rescore import WindowRescorer
@@ -89,13 +89,7 @@ class Lockstep:
         """One learner and one step per model kind over every seed's networks; seed s row s."""
         trainers, cfg = self.trainers, self.trainers[0].cfg
         launch = {"compile": cfg.learner.compile, "cudagraphs": cfg.learner.cudagraphs}
-        learner = Learner(
-            [t.loss for t in trainers],
-            lr_actor=cfg.learner.lr_actor,
-            lr_critic=cfg.learner.lr_critic,
-            target_update_period=cfg.learner.target_update_period,
-            **launch,
-        )
+        learner = configured_learner([t.loss for t in trainers], cfg.learner)
         steps = {
             name: ModelStep(
                 [t.rewards.losses[name] for t in trainers], cfg.gentleness.lr_model, **launch
