@@ -30,8 +30,8 @@ from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.deprecation import moved_method
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.rewards.env_sizes import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.intrinsic import IntrinsicRewards
-from gentlerl.rewards.specs import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.variants import (
     critic_supports,
     derived_support,

@@ -25,7 +25,7 @@ from gentlerl.data import NStepWriter
 from gentlerl.files import dump_yaml, write_atomic
 from gentlerl.lazy import record_missing_pandas
 from gentlerl.rewards import IntrinsicRewards
-from gentlerl.training import guards
+from gentlerl.training import resume
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.evaluation import EVAL_SEED_OFFSET, make_eval_env, takes_num_envs
 from gentlerl.training.logging import RunLogger, episode_transforms
@@ -228,7 +228,7 @@ def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:
 
 def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
     """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
-    config = guards.plain(cfg.to_dict())
+    config = resume.plain(cfg.to_dict())
     write_atomic(layout.config, dump_yaml(config))
     return config
 

@@ -24,7 +24,7 @@ from gentlerl.agent.builder import configured_learner
 from gentlerl.models.stacking import seed_stack
 from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.window_rescore import WindowRescorer
-from gentlerl.training import guards
+from gentlerl.training import stops
 from gentlerl.training.logging import Progress, RunLogger
 from gentlerl.training.run_lock import RunLock, held_here
 from gentlerl.training.run_state import SeedRun
@@ -147,7 +147,7 @@ class Lockstep:
             ]
             self._loop(collectors, passes)
         except ChildProcessError as err:  # a collector process was killed: the run can go on
-            raise guards.resumable_fault(err, self.trainers[0].layout.checkpoint) from err
+            raise stops.resumable_fault(err, self.trainers[0].layout.checkpoint) from err
         finally:  # also on a worker's error: no env processes or Ray actors left behind
             for collector in collectors:
                 collector.shutdown()

@@ -27,7 +27,7 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.deprecation import warn_deprecated
 from gentlerl.distributed.cluster import join_cluster
 from gentlerl.files import write_atomic
-from gentlerl.training import guards, run_eval, run_state
+from gentlerl.training import resume, run_eval, run_state, stops
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
@@ -64,7 +64,7 @@ class Trainer:
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = probe if probe is not None else probe_env(cfg, self.env_factory)
         # Before anything is written: a refused resume leaves no trace in the run directory.
-        self.resume_state = guards.load_resume_state(cfg, self.layout.checkpoint)
+        self.resume_state = resume.load_resume_state(cfg, self.layout.checkpoint)
         prepare_process(cfg)
         agent = make_agent(cfg, self.env_factory, probe)
         if cfg.collector.kind == "ray":  # Ray installed and the cluster reachable, or no run
@@ -130,10 +130,10 @@ class Trainer:
         state, self.resume_state = self.resume_state, None
         # every entry checked first: a NaN frame count must not read as a finished run
         check_trainer_state(self, state, self.layout.checkpoint)
-        finished = guards.finished_summary(state, self.layout.done, self.cfg)
+        finished = resume.finished_summary(state, self.layout.done, self.cfg)
         if finished is None:
             self.load_state_dict(state)
-            guards.record_config_changes(self.layout.root, state, self.cfg.to_dict())
+            resume.record_config_changes(self.layout.root, state, self.cfg.to_dict())
         return finished
 
     def make_collector(self) -> Any:
@@ -185,8 +185,9 @@ class Trainer:
     def _rewarded(self, batch: TensorDictBase) -> TensorDictBase:
         """The batch with every reward component (checked finite), counted in ``frames``."""
         frames, checkpoint = self.counters["frames"], self.layout.checkpoint
-        batch = guards.scored(self.rewards.transform, batch, frames, checkpoint)
-        guards.check_rewards(batch, self.rewards.reward_keys, frames, checkpoint)
+        batch = stops.rewarded(
+            self.rewards.transform, batch, self.rewards.reward_keys, frames, checkpoint
+        )
         self.counters["frames"] += batch.numel()
         return batch
 
@@ -222,7 +223,7 @@ class Trainer:
         for key in self.rewards.reward_keys:
             metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
         where = f"frame {self.counters['frames']} (update {self.counters['updates']})"
-        guards.stop_if_not_finite(metrics, where, self.layout.checkpoint)
+        stops.stop_if_not_finite(metrics, where, self.layout.checkpoint)
         return metrics
 
     def _log_training(self, p: LoopPass) -> None:

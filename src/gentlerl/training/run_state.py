@@ -9,7 +9,7 @@ import dataclasses
 from typing import TYPE_CHECKING, Any, Protocol
 
 from gentlerl.agent.learner import TrainingState
-from gentlerl.training import guards
+from gentlerl.training import resume
 from gentlerl.training.checkpoint import (
     check_critic_supports,
     critic_supports,
@@ -110,7 +110,7 @@ def load_trainer_state(trainer: SeedRun, state: dict[str, Any]) -> None:
         )
     if trainer.beta_schedule is not None:
         trainer.beta_schedule.load_state_dict(state["beta_schedule"])
-    trainer.counters = guards.checked_counters(state["counters"], trainer.layout.checkpoint)
+    trainer.counters = resume.checked_counters(state["counters"], trainer.layout.checkpoint)
     trainer.wall_s = float(state.get("wall_s", 0.0))  # absent in checkpoints before it
     trainer.eval_history = list(state["eval_history"])
     trainer.best_eval = state["best_eval"]
