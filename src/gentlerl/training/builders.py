@@ -10,7 +10,7 @@ from functools import partial
 from typing import Any, NamedTuple
 
 import torch
-from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
 from torchrl.envs import EnvBase, TransformedEnv
@@ -34,6 +34,8 @@ from gentlerl.training.process_collector import ProcessCollector
 from gentlerl.training.seeding import seed_everything
 
 EnvFactory = Callable[..., EnvBase]
+#: A run's collector: TorchRL's (one process, several, Ray actors), or one a batch ahead.
+RunCollector = BaseCollector | PrefetchCollector | ProcessCollector
 
 #: Keys the agent's n-step buffer keeps (plus the reward components under "next").
 AGENT_KEYS = (
@@ -157,7 +159,7 @@ def make_collector(
     frames_left: int,
     random_left: int,
     seed: int,
-) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
+) -> RunCollector:
     """TorchRL ``Collector`` (one process), ``MultiSyncCollector`` (``num_workers`` processes) or
     ``RayCollector`` (``num_workers`` Ray actors, :mod:`gentlerl.distributed.collector`); with
     ``cfg.overlap`` the single collector runs one batch ahead, on a thread (``true``:
@@ -201,7 +203,7 @@ def make_collector(
 
 def make_run_collector(
     cfg: TrainConfig, env_factory: EnvFactory, policy: torch.nn.Module, frames: int
-) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
+) -> RunCollector:
     """:func:`make_collector` for the rest of a run that has collected ``frames``: seeded with
     ``cfg.seed + frames``, Ray workers starting from ``policy``'s current weights."""
     col, seed = cfg.collector, cfg.seed + frames

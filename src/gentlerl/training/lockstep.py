@@ -16,9 +16,11 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
+from tensordict import TensorDictBase
 from torchrl import timeit
+from torchrl.envs import EnvBase
 
 from gentlerl.agent.builder import configured_learner
 from gentlerl.models.stacking import seed_stack
@@ -27,17 +29,23 @@ from gentlerl.rewards.window_rescore import WindowRescorer
 from gentlerl.training import stops
 from gentlerl.training.logging import Progress, RunLogger
 from gentlerl.training.run_lock import RunLock, held_here
-from gentlerl.training.run_state import SeedRun
 from gentlerl.training.seeding import own_stream
+
+if TYPE_CHECKING:
+    from gentlerl.training.builders import RunCollector
+    from gentlerl.training.seed_run import SeedRun
+
+#: What one seed's step returns.
+R = TypeVar("R")
 
 
 @dataclass
 class LoopPass:
     """One pass of the loop: what it collects from and logs to, its clocks and pending logs."""
 
-    collector: Any
+    collector: RunCollector
     logger: RunLogger
-    eval_env: Any
+    eval_env: EnvBase
     progress: Progress
     wall: float
     next_sync: int
@@ -128,14 +136,14 @@ class Lockstep:
         ]
 
     @staticmethod
-    def _as(trainer: SeedRun, step: Callable[..., Any], *args: Any) -> Any:
+    def _as(trainer: SeedRun, step: Callable[..., R], *args: object) -> R:
         """``step(*args)`` of one seed, drawing from its own random streams."""
         with own_stream(trainer):
             return step(*args)
 
-    def _collect(self, opened: list[tuple[RunLogger, Any]]) -> None:
+    def _collect(self, opened: list[tuple[RunLogger, EnvBase]]) -> None:
         """Each seed's collector made, the loop run over them, every collector shut down."""
-        collectors: list[Any] = []
+        collectors: list[RunCollector] = []
         several = len(self.trainers) > 1
         try:
             collectors.extend(self._as(t, t.make_collector) for t in self.trainers)
@@ -152,7 +160,7 @@ class Lockstep:
             for collector in collectors:
                 collector.shutdown()
 
-    def _loop(self, collectors: list[Any], passes: list[LoopPass]) -> None:
+    def _loop(self, collectors: list[RunCollector], passes: list[LoopPass]) -> None:
         """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
         streams = [iter(c) for c in collectors]
         while batches := self._next_batches(streams):
@@ -167,7 +175,7 @@ class Lockstep:
         for p in passes:
             p.progress.close()
 
-    def _next_batches(self, streams: list[Iterator[Any]]) -> list[Any]:
+    def _next_batches(self, streams: list[Iterator[TensorDictBase]]) -> list[TensorDictBase]:
         """Each seed's next collected batch (its own random streams: its exploration noise);
         ``[]`` once the collectors are done (together: every seed collects the same frames)."""
         batches = [
@@ -217,7 +225,7 @@ class Lockstep:
         ]
 
 
-def _samples(trainer: SeedRun) -> tuple[dict[str, Any], Any]:
+def _samples(trainer: SeedRun) -> tuple[dict[str, TensorDictBase], TensorDictBase]:
     """One update's draws of a seed, in a lone run's order: its models' batches, then its
     learner's prioritised batch (neither step in between draws)."""
     return trainer.rewards.model_batches(), trainer.rb.sample()

@@ -16,9 +16,10 @@ seeds in one process with each update one step of all of them.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import torch
 from tensordict import TensorDictBase
 from torchrl import timeit
 from torchrl.envs import EnvBase
@@ -31,6 +32,7 @@ from gentlerl.training import resume, run_eval, run_state, stops
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
+    RunCollector,
     default_env_factory,
     make_agent,
     make_logger,
@@ -47,6 +49,9 @@ from gentlerl.training.lockstep import Lockstep, LoopPass
 from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_unit
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state
+
+if TYPE_CHECKING:
+    from gentlerl.objectives import MultiHeadD4PGLoss
 
 
 class Trainer:
@@ -93,16 +98,16 @@ class Trainer:
         return Lockstep([self]).update()[0]
 
     @property
-    def policy(self) -> Any:
+    def policy(self) -> torch.nn.Module:
         """This seed's acting actor (on the CPU)."""
         return self.learner.policy_of(self.seat)
 
     @property
-    def loss(self) -> Any:
+    def loss(self) -> MultiHeadD4PGLoss:
         """This seed's D4PG loss (its actor, critics and their targets)."""
         return self.learner.losses[self.seat]
 
-    def open(self) -> tuple[dict[str, float] | None, Any, Any]:
+    def open(self) -> tuple[dict[str, float] | None, RunLogger | None, EnvBase | None]:
         """Resume (a finished run: its final evaluation, nothing opened), then the logger and
         the evaluation env."""
         remove_stale_temp_files(self.layout.root)
@@ -113,7 +118,7 @@ class Trainer:
         logger.truncate_after(self.counters["frames"])
         return None, logger, make_run_eval_env(self.cfg, self.env_factory)
 
-    def close(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+    def close(self, logger: RunLogger, eval_env: EnvBase) -> dict[str, float]:
         """The final evaluation, the checkpoint and ``DONE``; closes what :meth:`open` opened."""
         summary = run_eval.final_evaluation(self, logger, eval_env)
         self.save()
@@ -136,13 +141,17 @@ class Trainer:
             resume.record_config_changes(self.layout.root, state, self.cfg.to_dict())
         return finished
 
-    def make_collector(self) -> Any:
+    def make_collector(self) -> RunCollector:
         """The run's collector, acting with the learner's policy, from the frames so far."""
         policy, frames = self.builder.make_policy(self.learner, self.seat), self.counters["frames"]
         return make_run_collector(self.cfg, self.env_factory, policy, frames)
 
     def start_pass(
-        self, collector: Any, logger: RunLogger, eval_env: Any, bar: int | None = None
+        self,
+        collector: RunCollector,
+        logger: RunLogger,
+        eval_env: EnvBase,
+        bar: int | None = None,
     ) -> LoopPass:
         """The state of one pass of the loop over ``collector`` (``bar``: its progress bar's
         line, labelled with the seed, where several runs show theirs at once)."""
@@ -205,7 +214,7 @@ class Trainer:
             c["frames"] > cfg.collector.init_random_frames and len(self.rb) >= cfg.replay.batch_size
         )
 
-    def _sync_policy(self, collector: Any, next_sync: int) -> int:
+    def _sync_policy(self, collector: RunCollector, next_sync: int) -> int:
         """Send the actor to the workers (multi: each batch; ray: each ``weight_sync_every``
         updates); returns the update count of the next Ray sync."""
         col, updates = self.cfg.collector, self.counters["updates"]
