@@ -1,7 +1,7 @@
 """A run's evaluations during training: the actor's noise-free episodes logged (with each critic
 head's prediction against what they returned), kept in the run's history, the best actor saved,
 and the penalty's multiplier steered on episodes; for each seed's run
-(:class:`~gentlerl.training.run_state.SeedRun`)."""
+(:class:`~gentlerl.training.seed_run.SeedRun`)."""
 
 from __future__ import annotations
 
