@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -183,26 +182,15 @@ def run_hydra(argv: Sequence[str]) -> None:
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> None:
     """Entry point of ``gentlerl-train`` and ``gentlerl train``: parses ``argv`` (default
-    ``sys.argv[1:]``) as hydra overrides; ``prog`` names the program in hydra's shell-completion
-    lines. A refusal, an error of hydra's or an interruption is one line on stderr
-    (``GENTLERL_DEBUG=1``: the traceback)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    with _program_name(prog):
-        _main(argv)
+    ``sys.argv[1:]``) as hydra overrides. A refusal, an error of hydra's or an interruption is
+    one line on stderr (``GENTLERL_DEBUG=1``: the traceback).
 
-
-@contextmanager
-def _program_name(prog: str | None) -> Iterator[None]:
-    """``sys.argv[0]`` set to ``prog`` meanwhile: the one thing hydra 1.3 takes from no argument
-    (its ``-sc`` scripts and ``--help`` name the program after it); the arguments are handed
-    to hydra, not read from ``sys.argv``."""
-    if prog is None:
-        yield
-        return
+    ``prog`` names the program in hydra's ``--help`` and ``-sc`` lines, which hydra 1.3 reads
+    from ``sys.argv[0]`` alone: that one entry is set meanwhile (the arguments are handed)."""
     name = sys.argv[0]
-    sys.argv[0] = prog
+    sys.argv[0] = name if prog is None else prog
     try:
-        yield
+        _main(list(sys.argv[1:] if argv is None else argv))
     finally:
         sys.argv[0] = name
 
