@@ -89,7 +89,10 @@ def test_plot_command_writes_the_figure_set(tmp_path, capsys):
 
 def test_train_command_runs_the_hydra_app_with_its_overrides(monkeypatch):
     seen = {}
-    monkeypatch.setattr(train_cli, "main", lambda: seen.update(argv=list(sys.argv)))
+    monkeypatch.setattr(
+        train_cli, "main", lambda argv, prog: seen.update(argv=list(argv), prog=prog)
+    )
+    argv = list(sys.argv)
     assert cli.main(["train", "variant=r", "seed=3"]) == 0
-    assert seen == {"argv": ["gentlerl train", "variant=r", "seed=3"]}
-    assert sys.argv[0] != "gentlerl train"  # restored
+    assert seen == {"argv": ["variant=r", "seed=3"], "prog": "gentlerl train"}
+    assert sys.argv == argv  # handed to the app, not swapped into the process

@@ -178,7 +178,7 @@ def _read_with(reader, path):
     from gentlerl.apps.suite_files import load_suite
     from gentlerl.apps.sweep_files import load_sweep
     from gentlerl.training.checkpoint import load_checkpoint
-    from gentlerl.training.guards import _history
+    from gentlerl.training.resume import _history
 
     if reader == "final_evals":
         return load_final_evals(path.parent)

@@ -16,9 +16,12 @@ from collections.abc import Sequence
 
 from gentlerl.apps.errors import DEBUG_ENV, debugging, exit_status, interrupted, one_line
 
-#: command -> (module with ``main(argv, prog)``, one-line description); ``None``: the hydra app.
-COMMANDS: dict[str, tuple[str | None, str]] = {
-    "train": (None, "train an agent (hydra overrides: task=touch variant=r+rf+rsp seed=0 ...)"),
+#: command -> (module with ``main(argv, prog)``, one-line description).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "train": (
+        "gentlerl.apps.train",
+        "train an agent (hydra overrides: task=touch variant=r+rf+rsp seed=0 ...)",
+    ),
     "seeds": (
         "gentlerl.apps.seeds",
         "train several seeds of one run in one process, their updates one batched step",
@@ -51,18 +54,6 @@ COMMANDS: dict[str, tuple[str | None, str]] = {
 }
 
 
-def run_train(argv: Sequence[str]) -> None:
-    """Run the hydra app (``gentlerl-train``) with ``argv`` as its command line."""
-    from gentlerl.apps import train
-
-    saved = sys.argv
-    sys.argv = ["gentlerl train", *argv]
-    try:
-        train.main()
-    finally:
-        sys.argv = saved
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gentlerl",
@@ -90,9 +81,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     rest += argv[1:]
     module, _ = COMMANDS[args.command]
     try:
-        if module is None:
-            run_train(rest)
-            return 0
         status = importlib.import_module(module).main(rest, prog=f"gentlerl {args.command}")
     except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - each failure is one line
         if debugging():

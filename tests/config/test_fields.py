@@ -10,7 +10,7 @@ import pytest
 from gentlerl.config import CollectorConfig, Range, declared_problems, iter_fields, setting
 from gentlerl.distributed.collector import make_ray_collector, ray_problems
 from gentlerl.training.config import TrainConfig, make_config
-from gentlerl.training.guards import SAFE_TO_CHANGE
+from gentlerl.training.resume import SAFE_TO_CHANGE
 
 #: What a resume could change before the flag moved onto each declaration, written out once.
 OLD_SAFE_TO_CHANGE = (

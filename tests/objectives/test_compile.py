@@ -9,7 +9,7 @@ from torch._dynamo.utils import counters
 from gentlerl.agent.learner import Learner
 from gentlerl.models import make_actor, make_critic
 from gentlerl.objectives import MultiHeadD4PGLoss
-from gentlerl.objectives.compile import EagerOnBuildFailure
+from gentlerl.objectives.launch import EagerOnBuildFailure
 
 #: Eager vs compiled over 4 updates (inductor fuses and reorders float32 sums); measured: <= 2.4e-7.
 RTOL, ATOL = 1e-5, 1e-6

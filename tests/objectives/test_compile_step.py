@@ -9,8 +9,8 @@ import warnings
 import pytest
 import torch
 
-import gentlerl.objectives.compile as compile_module
-from gentlerl.objectives.compile import EagerOnBuildFailure, compile_step
+import gentlerl.objectives.launch as compile_module
+from gentlerl.objectives.launch import EagerOnBuildFailure, compile_step
 
 
 def _step(x, scale=1):

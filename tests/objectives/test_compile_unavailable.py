@@ -1,4 +1,4 @@
-"""objectives.compile.compile_unavailable: ``None`` where ``torch.compile`` can run, otherwise the
+"""objectives.launch.compile_unavailable: ``None`` where ``torch.compile`` can run, otherwise the
 reason, one per missing piece (dynamo, inductor's import, a C++ compiler); and what
 ``compile_step`` does with it (the eager step and a warning at the caller) and with ``cudagraphs``
 (the step in a ``CudaGraphModule`` with its warmup; a recording stand-in here, so no CUDA and none
@@ -11,8 +11,8 @@ import pytest
 import torch
 import torch._inductor.cpp_builder
 
-from gentlerl.objectives import compile as compile_module
-from gentlerl.objectives.compile import EagerOnBuildFailure, compile_step, compile_unavailable
+from gentlerl.objectives import launch as compile_module
+from gentlerl.objectives.launch import EagerOnBuildFailure, compile_step, compile_unavailable
 
 
 @pytest.mark.skipif(

@@ -274,7 +274,7 @@ def test_without_rescore_surprise_windows_are_left_as_they_are():
 
 
 def test_the_models_are_seeded_0_and_step_eagerly_by_default(monkeypatch):
-    from gentlerl.objectives import compile as compiling
+    from gentlerl.objectives import launch as compiling
 
     settings = GentlenessConfig(**SMALL)
     default = IntrinsicRewards("r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={})

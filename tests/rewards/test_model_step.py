@@ -11,7 +11,7 @@ from tensordict import TensorDict
 from gentlerl import keys
 from gentlerl.models import DynamicsModel, PenaltyModel
 from gentlerl.objectives import EnsembleModelLoss
-from gentlerl.objectives.compile import compile_unavailable
+from gentlerl.objectives.launch import compile_unavailable
 from gentlerl.rewards.model_step import ModelStep, SeedBatchedModelStep
 from tests.agent.test_learner import _batch
 
@@ -225,7 +225,7 @@ def test_the_first_adam_step_moves_every_weight_by_the_learning_rate():
 def test_without_torch_compile_the_step_warns_naming_the_reward_models_and_runs_eagerly(
     monkeypatch,
 ):
-    from gentlerl.objectives import compile as compiling
+    from gentlerl.objectives import launch as compiling
 
     monkeypatch.setattr(compiling, "compile_unavailable", lambda: "no C++ compiler (test)")
     with warnings.catch_warnings():

@@ -144,7 +144,7 @@ def test_a_learning_rate_changed_on_resume_is_applied_to_the_optimisers(saved):
 
 
 def test_a_checkpoint_without_its_config_is_one_line_naming_the_file(saved, tmp_path):
-    from gentlerl.training.guards import load_resume_state
+    from gentlerl.training.resume import load_resume_state
 
     state = _state(saved)
     del state["config"]

@@ -30,8 +30,8 @@ from gentlerl.data import NStepWriter, make_beta_scheduler, make_replay_buffer
 from gentlerl.deprecation import moved_method
 from gentlerl.models import make_actor, make_critic, make_exploration_policy
 from gentlerl.objectives import MultiHeadD4PGLoss
+from gentlerl.rewards.env_sizes import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.intrinsic import IntrinsicRewards
-from gentlerl.rewards.specs import check_env_keys, env_feature_shapes, episode_steps
 from gentlerl.rewards.variants import (
     critic_supports,
     derived_support,
@@ -41,6 +41,21 @@ from gentlerl.rewards.variants import (
     reward_keys,
     task_reward_bounds,
 )
+
+
+def configured_learner(
+    losses: MultiHeadD4PGLoss | Sequence[MultiHeadD4PGLoss], settings: LearnerConfig
+) -> Learner:
+    """A :class:`Learner` over ``losses`` (one seed's, or several seeds' as one step) with the
+    step sizes, target period and launch of ``settings``: the one place a run reads them."""
+    return Learner(
+        losses,
+        lr_actor=settings.lr_actor,
+        lr_critic=settings.lr_critic,
+        target_update_period=settings.target_update_period,
+        compile=settings.compile,
+        cudagraphs=settings.cudagraphs,
+    )
 
 
 class AgentConfig(Protocol):
@@ -131,14 +146,7 @@ class AgentBuilder:
         loss.set_keys(terminated=keys.NSTEP_TERMINATED)
         for key, weight in self.rewards.head_weights().items():  # until the first PID step
             loss.set_head_weight(key, weight)
-        return Learner(
-            loss.to(learner.device),
-            lr_actor=learner.lr_actor,
-            lr_critic=learner.lr_critic,
-            target_update_period=learner.target_update_period,
-            compile=learner.compile,
-            cudagraphs=learner.cudagraphs,
-        )
+        return configured_learner(loss.to(learner.device), learner)
 
     def make_policy(self, learner: Learner, seed: int = 0) -> torch.nn.Module:
         """The learner's acting actor of seed ``seed`` (:meth:`Learner.policy_of`, on the CPU)

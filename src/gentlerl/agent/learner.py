@@ -31,7 +31,7 @@ from gentlerl.models.stacking import (
     stack_parameters,
 )
 from gentlerl.objectives import MultiHeadD4PGLoss
-from gentlerl.objectives.compile import compile_step
+from gentlerl.objectives.launch import compile_step
 
 
 @dataclass

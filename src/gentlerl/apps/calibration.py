@@ -24,7 +24,7 @@ import os
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 from torchrl.envs.utils import ExplorationType
@@ -32,6 +32,11 @@ from torchrl.envs.utils import ExplorationType
 from gentlerl.config.layout import RunLayout
 from gentlerl.config.limits import MAX_HANDS
 from gentlerl.files import write_atomic
+
+if TYPE_CHECKING:
+    from gentlerl.agent import Learner
+    from gentlerl.rewards import IntrinsicRewards
+    from gentlerl.training.config import TrainConfig
 
 #: Rollout modes: the deterministic actor, and the actor with its training noise.
 MODES = {"deterministic": ExplorationType.DETERMINISTIC, "noisy": ExplorationType.RANDOM}
@@ -55,7 +60,9 @@ def fields_not_saved(saved_config: dict[str, Any]) -> list[str]:
     return sorted({name for name, _ in iter_fields()} - saved)
 
 
-def load_agent(path: str | os.PathLike) -> tuple[Any, Any, Any, dict[str, Any]]:
+def load_agent(
+    path: str | os.PathLike,
+) -> tuple[TrainConfig, Learner, IntrinsicRewards, dict[str, Any]]:
     """``(config, learner, intrinsic rewards, info)`` restored from a run's directory or its
     ``checkpoint.pt``; a ``ValueError`` (one line) for anything else. ``info``: ``frames``
     trained, ``not_saved`` (:func:`fields_not_saved`)."""
@@ -156,7 +163,13 @@ def critic_calibration(
     return report
 
 
-def _report_head(path: Any, cfg: Any, learner: Any, rewards: Any, info: dict) -> dict[str, Any]:
+def _report_head(
+    path: str | os.PathLike,
+    cfg: TrainConfig,
+    learner: Learner,
+    rewards: IntrinsicRewards,
+    info: dict,
+) -> dict[str, Any]:
     """What the report says of the run before its rollouts: where, what, and each head's support."""
     critic = learner.loss.value_network.module
     heads = [str(k) for k in learner.loss.reward_keys]

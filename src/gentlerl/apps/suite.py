@@ -29,11 +29,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gentlerl.apps.parsing import command_parser
 from gentlerl.apps.suite_files import Cell, Suite, load_suite
 from gentlerl.config.layout import RunLayout
+
+if TYPE_CHECKING:
+    from gentlerl.training.config import TrainConfig
 
 #: The results file under ``--out``.
 RESULTS = "results.csv"
@@ -52,7 +55,7 @@ class PlannedCell:
     """A cell ready to run: its seeds' validated configs, how they train, whether all are done."""
 
     cell: Cell
-    cfgs: tuple[Any, ...]
+    cfgs: tuple[TrainConfig, ...]
     grouped: bool
     done: bool
 

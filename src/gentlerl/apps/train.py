@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Sequence
 from typing import Any
 
-import hydra
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
@@ -122,8 +122,9 @@ def quiet_torchrl_info() -> None:
     os.environ.setdefault("RL_LOGGING_LEVEL", "WARNING")
 
 
-@hydra.main(config_path=None, config_name="gentlerl_train", version_base="1.3")
-def _app(cfg: DictConfig) -> dict[str, float]:
+def _app(cfg: DictConfig, overrides: Sequence[str]) -> dict[str, float]:
+    """Train the run of the composed config ``cfg`` (hydra's task; ``overrides``: the command
+    line it came from, which a refusal quotes)."""
     from omegaconf.errors import OmegaConfBaseException
 
     from gentlerl.apps.errors import debugging, interrupted, one_line, sigterm_as_interrupt
@@ -146,7 +147,7 @@ def _app(cfg: DictConfig) -> dict[str, float]:
         if interrupt is not None:  # Ctrl-C that surfaced as another error inside a library
             raise interrupt from None
         if isinstance(err, OmegaConfBaseException):  # resolving an interpolation
-            refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
+            refusal = f"gentlerl train: error: {hydra_error_line(err, overrides)}"
         else:
             refusal = f"gentlerl train: error: {one_line(err)}"
     else:
@@ -160,29 +161,60 @@ def _app(cfg: DictConfig) -> dict[str, float]:
     return summary
 
 
-def main() -> None:
-    """Entry point of ``gentlerl-train``: parses ``sys.argv`` as hydra overrides. A refusal, an
-    error of hydra's or an interruption is one line on stderr (``GENTLERL_DEBUG=1``: the
-    traceback)."""
-    if {"-h", "--help"} & set(sys.argv[1:]):
+def run_hydra(argv: Sequence[str]) -> None:
+    """What ``@hydra.main`` does with ``sys.argv``, with ``argv``: hydra's flags and overrides
+    parsed by hydra's own parser, then a run, a ``-m`` sweep, ``--cfg`` or ``--info`` of the
+    train task. (hydra's compose API has no sweeps and no run directories, so this is hydra's
+    own runner, handed the command line instead of reading the process's.)"""
+    from hydra import version
+    from hydra._internal.utils import _run_hydra, get_args_parser
+
+    version.setbase("1.3")
+    parser = get_args_parser()
+    _run_hydra(
+        args=parser.parse_args(list(argv)),
+        args_parser=parser,
+        task_function=lambda cfg: _app(cfg, argv),
+        config_path=None,
+        config_name="gentlerl_train",
+    )
+
+
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> None:
+    """Entry point of ``gentlerl-train`` and ``gentlerl train``: parses ``argv`` (default
+    ``sys.argv[1:]``) as hydra overrides. A refusal, an error of hydra's or an interruption is
+    one line on stderr (``GENTLERL_DEBUG=1``: the traceback).
+
+    ``prog`` names the program in hydra's ``--help`` and ``-sc`` lines, which hydra 1.3 reads
+    from ``sys.argv[0]`` alone: that one entry is set meanwhile (the arguments are handed)."""
+    name = sys.argv[0]
+    sys.argv[0] = name if prog is None else prog
+    try:
+        _main(list(sys.argv[1:] if argv is None else argv))
+    finally:
+        sys.argv[0] = name
+
+
+def _main(argv: list[str]) -> None:
+    if {"-h", "--help"} & set(argv):
         print(help_page())
         return
     from gentlerl.apps.errors import debugging, exit_status
     from gentlerl.apps.overrides import hydra_error_line, override_problems
 
-    problems = override_problems(sys.argv[1:])
+    problems = override_problems(argv)
     if problems:
         raise SystemExit(f"gentlerl train: error: {'; '.join(problems)}")
     register_configs()
     full_error = os.environ.get(_FULL_ERROR)
     os.environ[_FULL_ERROR] = "1"  # hydra raises its errors instead of printing them
     try:
-        _app()
+        run_hydra(argv)
         refusal = None
     except Exception as err:  # noqa: BLE001 - hydra's errors (composing the config) are refusals
         if debugging():
             raise
-        refusal = f"gentlerl train: error: {hydra_error_line(err, sys.argv[1:])}"
+        refusal = f"gentlerl train: error: {hydra_error_line(err, argv)}"
     except KeyboardInterrupt as interrupt:
         if debugging():
             raise
@@ -197,7 +229,8 @@ def main() -> None:
         raise SystemExit(refusal)
 
 
-#: Set, hydra raises the errors of composing a config instead of printing several lines.
+#: Set, hydra raises the errors of composing a config instead of printing several lines (hydra
+#: reads it from the environment only, so it is set for the call and restored).
 _FULL_ERROR = "HYDRA_FULL_ERROR"
 
 

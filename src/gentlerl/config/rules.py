@@ -11,10 +11,23 @@ from gentlerl.config.fields import declared_problems, type_problems
 from gentlerl.config.groups import (
     OVERLAPS,
     CollectorConfig,
+    EnvConfig,
     GentlenessConfig,
     LearnerConfig,
+    LoggingConfig,
     NetworkConfig,
     ReplayConfig,
+)
+
+#: A config group: an instance of one of :data:`~gentlerl.config.groups.GROUPS`' classes.
+ConfigGroup = (
+    EnvConfig
+    | CollectorConfig
+    | ReplayConfig
+    | LearnerConfig
+    | NetworkConfig
+    | GentlenessConfig
+    | LoggingConfig
 )
 
 
@@ -157,7 +170,7 @@ GROUP_RULES: dict[str, Callable[[Any], list[str]]] = {
 }
 
 
-def check_group(config: Any, name: str) -> None:
+def check_group(config: ConfigGroup, name: str) -> None:
     """The checks ``gentlerl train`` makes of the group ``name`` (types, declared ranges, its
     rule), for a group built in Python (``IntrinsicRewards(settings=GentlenessConfig(...))``):
     one ``ValueError`` listing every problem, fields named as the CLI names them."""

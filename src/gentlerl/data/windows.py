@@ -11,10 +11,13 @@ exactly as ``MultiStepTransform`` summed the stored one.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
+
+if TYPE_CHECKING:
+    from torchrl.envs import Transform
 
 #: Entry of a stored transition holding its window: a tensordict of batch ``[..., n]``.
 WINDOW = "window"
@@ -69,7 +72,7 @@ def nstep_return(
 
 
 def rescore_windows(
-    transforms: Sequence[Any], batch: TensorDictBase, gamma: float, device: torch.device
+    transforms: Sequence[Transform], batch: TensorDictBase, gamma: float, device: torch.device
 ) -> dict[str, float]:
     r"""Score each sampled transition's window again with ``transforms`` (their ``compute``,
     models on ``device``) and replace ``("next", out_key)`` by the :func:`nstep_return` of it.

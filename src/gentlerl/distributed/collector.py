@@ -11,7 +11,7 @@ The reward-model transforms run in the learner on the stacked batch.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from gentlerl.config.fields import declared_problems, type_problems
 from gentlerl.config.groups import CollectorConfig
@@ -19,6 +19,7 @@ from gentlerl.distributed.cluster import no_cluster, parse_address, preflight, r
 
 if TYPE_CHECKING:
     import torch
+    from torchrl.collectors import BaseCollector
     from torchrl.envs import EnvBase
 
 
@@ -57,7 +58,7 @@ def make_ray_collector(
     address: str | None = None,
     cpus_per_worker: float = 1.0,
     memory_per_worker_gb: float = 1.0,
-) -> Any:
+) -> BaseCollector:
     """A synchronous ``RayCollector``: one remote collector per env factory (worker).
 
     Ray is started locally (``num_workers x cpus_per_worker`` CPUs) when ``address`` is None and

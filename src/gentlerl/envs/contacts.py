@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -35,6 +35,9 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.data import Composite, Unbounded
 from torchrl.envs import Transform
+
+if TYPE_CHECKING:
+    from torchrl.envs import EnvBase
 
 #: Where the adapter writes by default (as every force adapter: ``gentlerl.envs.external.FORCE``).
 FORCE = "force"
@@ -283,7 +286,7 @@ class ContactForces(Transform):
         """The group names, in the order of ``out_key``'s first dim."""
         return list(self.groups)
 
-    def set_container(self, container: Any) -> None:
+    def set_container(self, container: Transform | EnvBase) -> None:
         self._reader = None  # appended to another env (a clone): its simulator, found again
         return super().set_container(container)
 

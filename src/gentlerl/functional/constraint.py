@@ -45,9 +45,13 @@ def check_gains(gains: Sequence[float]) -> tuple[float, float, float]:
     return (float(gains[0]), float(gains[1]), float(gains[2]))
 
 
-def _check_tolerance(tolerance: float) -> None:
+def check_tolerance(tolerance: float) -> float:
+    """``tolerance`` as a float, or one ``ValueError``: the one check of a tolerance argument,
+    shared by every public function and class that takes one (a run's ``gentleness.tolerance``
+    is checked by its config group instead)."""
     if not (is_finite_number(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be a finite impact > 0 (N), got {tolerance!r}")
+        raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
+    return float(tolerance)
 
 
 def tolerance_unit(tolerance: float, lam2: float = PAPER_LAMBDA_2) -> float:
@@ -60,7 +64,7 @@ def tolerance_unit(tolerance: float, lam2: float = PAPER_LAMBDA_2) -> float:
 
     Example: a finger whose tolerance is 20 N reads impacts in units of 10 N.
     """
-    _check_tolerance(tolerance)
+    check_tolerance(tolerance)
     if not (is_finite_number(lam2) and lam2 > 0):
         raise ValueError(f"lam2 must be a finite number > 0, got {lam2!r}")
     return tolerance / lam2
@@ -105,7 +109,7 @@ def overshoot(impact: float, tolerance: float) -> float:
 
     A ratio, so the PID gains need no unit; the floor keeps an episode without contact finite.
     """
-    _check_tolerance(tolerance)
+    check_tolerance(tolerance)
     if not (is_finite_number(impact) and impact >= 0):
         raise ValueError(f"impact must be a finite number >= 0, got {impact!r}")
     return math.log2(max(impact, tolerance / 2) / tolerance)
@@ -155,7 +159,7 @@ def excess_cost(impact: torch.Tensor, tolerance: float) -> torch.Tensor:
     episode's cost :math:`J = \sum_t c_t` counts steps of violation and is bounded by the horizon
     (its critic's support follows from it). ``impact`` ``[..., n_sites]``; returns ``[...]``.
     """
-    _check_tolerance(tolerance)
+    check_tolerance(tolerance)
     excess = (impact - tolerance).clamp_min(0.0).sum(-1) / tolerance
     return excess.clamp_max(1.0)
 

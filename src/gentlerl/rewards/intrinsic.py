@@ -23,11 +23,11 @@ from gentlerl.deprecation import moved_method
 from gentlerl.functional import tolerance_unit
 from gentlerl.objectives import EnsembleModelLoss
 from gentlerl.rewards.chain import RewardChain
+from gentlerl.rewards.env_sizes import env_sizes
 from gentlerl.rewards.lagrangian import CostLagrangian
 from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.multiplier import ImpactMultiplier
 from gentlerl.rewards.rescore import Rescoring
-from gentlerl.rewards.specs import env_sizes
 from gentlerl.rewards.variants import COMPONENTS, Ingredients, reward_keys
 from gentlerl.transforms import ImpactPenalty, ModelRewardTransform, PenaltySurprise
 

@@ -9,7 +9,7 @@ with no copy), and the loss's pure ``losses(batch, params)`` runs on every row: 
 plain call on row 0 for one. On a GPU an eager step is a few hundred small kernels (4.5 ms for
 the paper's penalty ensemble on an H200, against 0.3 ms replayed as a CUDA graph), so the step
 follows the learner's ``compile`` / ``cudagraphs`` settings
-(:func:`~gentlerl.objectives.compile.compile_step`); on the CPU by default it is the plain step.
+(:func:`~gentlerl.objectives.launch.compile_step`); on the CPU by default it is the plain step.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from gentlerl.models.stacking import (
     share_rows,
     stack_parameters,
 )
-from gentlerl.objectives.compile import compile_step
+from gentlerl.objectives.launch import compile_step
 
 
 class ModelStep:

@@ -40,7 +40,7 @@ from tensordict import TensorDictBase
 
 from gentlerl import keys
 from gentlerl.functional import overshoot, pid_lagrangian
-from gentlerl.functional.constraint import check_gains, is_finite_number
+from gentlerl.functional.constraint import check_gains, check_tolerance, is_finite_number
 
 #: Finished episodes whose median max impact is the constraint's cost.
 WINDOW = 10
@@ -70,9 +70,7 @@ class ImpactMultiplier:
         integral_max: float | None = None,
         base: float = 1.0,
     ) -> None:
-        if not (is_finite_number(tolerance) and tolerance > 0):
-            raise ValueError(f"tolerance must be a finite impact > 0, got {tolerance!r}")
-        gains = check_gains(gains)
+        tolerance, gains = check_tolerance(tolerance), check_gains(gains)
         if not (_is_integer(window) and window >= 1):
             raise ValueError(f"window must be an integer >= 1 episode, got {window!r}")
         if period is not None and not (_is_integer(period) and period >= 1):
@@ -82,7 +80,7 @@ class ImpactMultiplier:
         integral_max = math.inf if integral_max is None else integral_max
         if isinstance(integral_max, bool) or not integral_max >= 0:
             raise ValueError(f"integral_max must be a number >= 0 (or None), got {integral_max!r}")
-        self.tolerance, self.gains = float(tolerance), gains
+        self.tolerance, self.gains = tolerance, gains
         self.period, self.integral_max, self.base = period, float(integral_max), float(base)
         self.recent: deque[float] = deque(maxlen=window)
         self.multiplier = self.integral = self.cost = 0.0

@@ -54,12 +54,12 @@ class Part:
 
 def target_updater(loss: LossModule, period: int) -> HardUpdate:
     """A ``HardUpdate`` of ``loss`` copying its target model, normaliser statistics included
-    (:class:`~gentlerl.objectives.models.ModelHardUpdate`), every ``period`` ``step()`` calls.
+    (:class:`~gentlerl.objectives.model_losses.ModelHardUpdate`), every ``period`` ``step()`` calls.
 
     Made before anything reads ``loss.target_*_params``: TorchRL warns on every read of target
     parameters that no updater has been associated with.
     """
-    from gentlerl.objectives.models import ModelHardUpdate
+    from gentlerl.objectives.model_losses import ModelHardUpdate
 
     # HardUpdate copies on the (interval + 1)-th step() call.
     return ModelHardUpdate(loss, value_network_update_interval=period - 1)

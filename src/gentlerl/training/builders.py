@@ -10,7 +10,7 @@ from functools import partial
 from typing import Any, NamedTuple
 
 import torch
-from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.scheduler import LinearScheduler
 from torchrl.envs import EnvBase, TransformedEnv
@@ -25,7 +25,7 @@ from gentlerl.data import NStepWriter
 from gentlerl.files import dump_yaml, write_atomic
 from gentlerl.lazy import record_missing_pandas
 from gentlerl.rewards import IntrinsicRewards
-from gentlerl.training import guards
+from gentlerl.training import resume
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.evaluation import EVAL_SEED_OFFSET, make_eval_env, takes_num_envs
 from gentlerl.training.logging import RunLogger, episode_transforms
@@ -34,6 +34,8 @@ from gentlerl.training.process_collector import ProcessCollector
 from gentlerl.training.seeding import seed_everything
 
 EnvFactory = Callable[..., EnvBase]
+#: A run's collector: TorchRL's (one process, several, Ray actors), or one a batch ahead.
+RunCollector = BaseCollector | PrefetchCollector | ProcessCollector
 
 #: Keys the agent's n-step buffer keeps (plus the reward components under "next").
 AGENT_KEYS = (
@@ -157,7 +159,7 @@ def make_collector(
     frames_left: int,
     random_left: int,
     seed: int,
-) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
+) -> RunCollector:
     """TorchRL ``Collector`` (one process), ``MultiSyncCollector`` (``num_workers`` processes) or
     ``RayCollector`` (``num_workers`` Ray actors, :mod:`gentlerl.distributed.collector`); with
     ``cfg.overlap`` the single collector runs one batch ahead, on a thread (``true``:
@@ -201,7 +203,7 @@ def make_collector(
 
 def make_run_collector(
     cfg: TrainConfig, env_factory: EnvFactory, policy: torch.nn.Module, frames: int
-) -> Collector | MultiSyncCollector | PrefetchCollector | ProcessCollector:
+) -> RunCollector:
     """:func:`make_collector` for the rest of a run that has collected ``frames``: seeded with
     ``cfg.seed + frames``, Ray workers starting from ``policy``'s current weights."""
     col, seed = cfg.collector, cfg.seed + frames
@@ -228,7 +230,7 @@ def make_run_eval_env(cfg: TrainConfig, env_factory: EnvFactory) -> EnvBase:
 
 def write_config(cfg: TrainConfig, layout: RunLayout) -> dict[str, Any]:
     """Write the run's full config to ``layout.config``; returns it as plain YAML data."""
-    config = guards.plain(cfg.to_dict())
+    config = resume.plain(cfg.to_dict())
     write_atomic(layout.config, dump_yaml(config))
     return config
 

@@ -177,7 +177,9 @@ def replay_buffer_state(rb: ReplayBuffer) -> dict[str, Any]:
     return state
 
 
-def load_replay_buffer_state(rb: ReplayBuffer, state: dict[str, Any], path: Any = None) -> None:
+def load_replay_buffer_state(
+    rb: ReplayBuffer, state: dict[str, Any], path: str | os.PathLike | None = None
+) -> None:
     """Inverse of :func:`replay_buffer_state` on a freshly built buffer of the same capacity;
     a replay that :func:`replay_state_problem` refuses is a :class:`CheckpointError` naming
     ``path``, raised before the buffer is touched."""

@@ -15,12 +15,17 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 
 from gentlerl.models.stacking import optimizer_row_problem
+
+if TYPE_CHECKING:
+    import os
+
+    from gentlerl.training.seed_run import SeedRun
 
 #: The entries every checkpoint of a run holds (older ones lack ``wall_s`` and ``supports``).
 REQUIRED = (
@@ -40,9 +45,9 @@ class CheckpointSchemaError(ValueError):
     fields, on one line."""
 
 
-def check_trainer_state(trainer: Any, state: Any, path: Any) -> None:
+def check_trainer_state(trainer: SeedRun, state: Any, path: str | os.PathLike) -> None:
     """Raise :class:`CheckpointSchemaError` when ``state`` (a loaded checkpoint) cannot be
-    restored into ``trainer`` (a :class:`~gentlerl.training.run_state.SeedRun`), listing every
+    restored into ``trainer``, listing every
     problem; ``path`` names the file."""
     problems = trainer_state_problems(trainer, state)
     if problems:
@@ -52,7 +57,7 @@ def check_trainer_state(trainer: Any, state: Any, path: Any) -> None:
         raise CheckpointSchemaError(f"{path}: {shown}; it cannot be resumed")
 
 
-def trainer_state_problems(trainer: Any, state: Any) -> list[str]:
+def trainer_state_problems(trainer: SeedRun, state: Any) -> list[str]:
     """Why ``state`` cannot be restored into ``trainer``, one line per field (none: it can)."""
     if not isinstance(state, Mapping):
         return [f"it holds a {type(state).__name__}, not a run's state"]
@@ -75,7 +80,7 @@ def trainer_state_problems(trainer: Any, state: Any) -> list[str]:
     return problems
 
 
-def _learner_problems(trainer: Any, learner: Any) -> list[str]:
+def _learner_problems(trainer: SeedRun, learner: Any) -> list[str]:
     if not isinstance(learner, Mapping):
         return [f"learner is a {type(learner).__name__}, not a mapping"]
     missing = [f"learner.{k}" for k in LEARNER if k not in learner]
@@ -89,7 +94,7 @@ def _learner_problems(trainer: Any, learner: Any) -> list[str]:
     return problems
 
 
-def _intrinsic_problems(trainer: Any, intrinsic: Any) -> list[str]:
+def _intrinsic_problems(trainer: SeedRun, intrinsic: Any) -> list[str]:
     rewards = trainer.rewards
     if not isinstance(intrinsic, Mapping):
         return [f"intrinsic is a {type(intrinsic).__name__}, not a mapping"]

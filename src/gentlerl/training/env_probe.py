@@ -6,17 +6,19 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 from torchrl.envs import EnvBase
 
 from gentlerl import keys
 
+if TYPE_CHECKING:
+    from gentlerl.training.config import TrainConfig
 
-def probe_env(cfg: Any, env_factory: Callable[[], EnvBase]) -> EnvBase:
-    """``env_factory()``, reset and stepped once with a zero action, for the run ``cfg`` (a
-    ``TrainConfig``): the env :func:`~gentlerl.training.builders.make_agent` sizes the agent from
-    (the caller closes it).
+
+def probe_env(cfg: TrainConfig, env_factory: Callable[[], EnvBase]) -> EnvBase:
+    """``env_factory()``, reset and stepped once with a zero action, for the run ``cfg``: the env
+    :func:`~gentlerl.training.builders.make_agent` sizes the agent from (the caller closes it).
 
     Raises:
         ValueError: the env cannot be built or cannot step; the message names the env settings
@@ -35,7 +37,7 @@ def probe_env(cfg: Any, env_factory: Callable[[], EnvBase]) -> EnvBase:
     return env
 
 
-def _settings(cfg: Any, err: Exception) -> str:
+def _settings(cfg: TrainConfig, err: Exception) -> str:
     """The env settings ``err`` is about: ``env.kwargs.NAME=value`` for a keyword the env does
     not take, else the env (``env.name`` or ``task``) with its ``env.kwargs``."""
     kwargs = cfg.env.kwargs

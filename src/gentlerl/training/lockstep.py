@@ -16,28 +16,36 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
+from tensordict import TensorDictBase
 from torchrl import timeit
+from torchrl.envs import EnvBase
 
-from gentlerl.agent import Learner
+from gentlerl.agent.builder import configured_learner
 from gentlerl.models.stacking import seed_stack
 from gentlerl.rewards.model_step import ModelStep
 from gentlerl.rewards.window_rescore import WindowRescorer
-from gentlerl.training import guards
+from gentlerl.training import stops
 from gentlerl.training.logging import Progress, RunLogger
 from gentlerl.training.run_lock import RunLock, held_here
-from gentlerl.training.run_state import SeedRun
 from gentlerl.training.seeding import own_stream
+
+if TYPE_CHECKING:
+    from gentlerl.training.builders import RunCollector
+    from gentlerl.training.seed_run import SeedRun
+
+#: What one seed's step returns.
+R = TypeVar("R")
 
 
 @dataclass
 class LoopPass:
     """One pass of the loop: what it collects from and logs to, its clocks and pending logs."""
 
-    collector: Any
+    collector: RunCollector
     logger: RunLogger
-    eval_env: Any
+    eval_env: EnvBase
     progress: Progress
     wall: float
     next_sync: int
@@ -89,13 +97,7 @@ class Lockstep:
         """One learner and one step per model kind over every seed's networks; seed s row s."""
         trainers, cfg = self.trainers, self.trainers[0].cfg
         launch = {"compile": cfg.learner.compile, "cudagraphs": cfg.learner.cudagraphs}
-        learner = Learner(
-            [t.loss for t in trainers],
-            lr_actor=cfg.learner.lr_actor,
-            lr_critic=cfg.learner.lr_critic,
-            target_update_period=cfg.learner.target_update_period,
-            **launch,
-        )
+        learner = configured_learner([t.loss for t in trainers], cfg.learner)
         steps = {
             name: ModelStep(
                 [t.rewards.losses[name] for t in trainers], cfg.gentleness.lr_model, **launch
@@ -134,14 +136,14 @@ class Lockstep:
         ]
 
     @staticmethod
-    def _as(trainer: SeedRun, step: Callable[..., Any], *args: Any) -> Any:
+    def _as(trainer: SeedRun, step: Callable[..., R], *args: object) -> R:
         """``step(*args)`` of one seed, drawing from its own random streams."""
         with own_stream(trainer):
             return step(*args)
 
-    def _collect(self, opened: list[tuple[RunLogger, Any]]) -> None:
+    def _collect(self, opened: list[tuple[RunLogger, EnvBase]]) -> None:
         """Each seed's collector made, the loop run over them, every collector shut down."""
-        collectors: list[Any] = []
+        collectors: list[RunCollector] = []
         several = len(self.trainers) > 1
         try:
             collectors.extend(self._as(t, t.make_collector) for t in self.trainers)
@@ -153,12 +155,12 @@ class Lockstep:
             ]
             self._loop(collectors, passes)
         except ChildProcessError as err:  # a collector process was killed: the run can go on
-            raise guards.resumable_fault(err, self.trainers[0].layout.checkpoint) from err
+            raise stops.resumable_fault(err, self.trainers[0].layout.checkpoint) from err
         finally:  # also on a worker's error: no env processes or Ray actors left behind
             for collector in collectors:
                 collector.shutdown()
 
-    def _loop(self, collectors: list[Any], passes: list[LoopPass]) -> None:
+    def _loop(self, collectors: list[RunCollector], passes: list[LoopPass]) -> None:
         """collect -> rewards -> buffers -> updates -> log -> evaluate -> checkpoint."""
         streams = [iter(c) for c in collectors]
         while batches := self._next_batches(streams):
@@ -173,7 +175,7 @@ class Lockstep:
         for p in passes:
             p.progress.close()
 
-    def _next_batches(self, streams: list[Iterator[Any]]) -> list[Any]:
+    def _next_batches(self, streams: list[Iterator[TensorDictBase]]) -> list[TensorDictBase]:
         """Each seed's next collected batch (its own random streams: its exploration noise);
         ``[]`` once the collectors are done (together: every seed collects the same frames)."""
         batches = [
@@ -223,7 +225,7 @@ class Lockstep:
         ]
 
 
-def _samples(trainer: SeedRun) -> tuple[dict[str, Any], Any]:
+def _samples(trainer: SeedRun) -> tuple[dict[str, TensorDictBase], TensorDictBase]:
     """One update's draws of a seed, in a lone run's order: its models' batches, then its
     learner's prioritised batch (neither step in between draws)."""
     return trainer.rewards.model_batches(), trainer.rb.sample()

@@ -16,9 +16,10 @@ seeds in one process with each update one step of all of them.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import torch
 from tensordict import TensorDictBase
 from torchrl import timeit
 from torchrl.envs import EnvBase
@@ -27,10 +28,11 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.deprecation import warn_deprecated
 from gentlerl.distributed.cluster import join_cluster
 from gentlerl.files import write_atomic
-from gentlerl.training import guards, run_eval, run_state
+from gentlerl.training import resume, run_eval, run_state, stops
 from gentlerl.training.builders import (
     AGENT_KEYS,
     EnvFactory,
+    RunCollector,
     default_env_factory,
     make_agent,
     make_logger,
@@ -48,6 +50,9 @@ from gentlerl.training.logging import EPISODE_KEYS, Progress, RunLogger, force_u
 from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state
 
+if TYPE_CHECKING:
+    from gentlerl.objectives import MultiHeadD4PGLoss
+
 
 class Trainer:
     """One seed's run: its state, and each batch's steps; :meth:`run` executes (or resumes) it.
@@ -64,7 +69,7 @@ class Trainer:
         self.env_factory = env_factory or default_env_factory(cfg)
         probe = probe if probe is not None else probe_env(cfg, self.env_factory)
         # Before anything is written: a refused resume leaves no trace in the run directory.
-        self.resume_state = guards.load_resume_state(cfg, self.layout.checkpoint)
+        self.resume_state = resume.load_resume_state(cfg, self.layout.checkpoint)
         prepare_process(cfg)
         agent = make_agent(cfg, self.env_factory, probe)
         if cfg.collector.kind == "ray":  # Ray installed and the cluster reachable, or no run
@@ -93,16 +98,16 @@ class Trainer:
         return Lockstep([self]).update()[0]
 
     @property
-    def policy(self) -> Any:
+    def policy(self) -> torch.nn.Module:
         """This seed's acting actor (on the CPU)."""
         return self.learner.policy_of(self.seat)
 
     @property
-    def loss(self) -> Any:
+    def loss(self) -> MultiHeadD4PGLoss:
         """This seed's D4PG loss (its actor, critics and their targets)."""
         return self.learner.losses[self.seat]
 
-    def open(self) -> tuple[dict[str, float] | None, Any, Any]:
+    def open(self) -> tuple[dict[str, float] | None, RunLogger | None, EnvBase | None]:
         """Resume (a finished run: its final evaluation, nothing opened), then the logger and
         the evaluation env."""
         remove_stale_temp_files(self.layout.root)
@@ -113,7 +118,7 @@ class Trainer:
         logger.truncate_after(self.counters["frames"])
         return None, logger, make_run_eval_env(self.cfg, self.env_factory)
 
-    def close(self, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+    def close(self, logger: RunLogger, eval_env: EnvBase) -> dict[str, float]:
         """The final evaluation, the checkpoint and ``DONE``; closes what :meth:`open` opened."""
         summary = run_eval.final_evaluation(self, logger, eval_env)
         self.save()
@@ -130,19 +135,23 @@ class Trainer:
         state, self.resume_state = self.resume_state, None
         # every entry checked first: a NaN frame count must not read as a finished run
         check_trainer_state(self, state, self.layout.checkpoint)
-        finished = guards.finished_summary(state, self.layout.done, self.cfg)
+        finished = resume.finished_summary(state, self.layout.done, self.cfg)
         if finished is None:
             self.load_state_dict(state)
-            guards.record_config_changes(self.layout.root, state, self.cfg.to_dict())
+            resume.record_config_changes(self.layout.root, state, self.cfg.to_dict())
         return finished
 
-    def make_collector(self) -> Any:
+    def make_collector(self) -> RunCollector:
         """The run's collector, acting with the learner's policy, from the frames so far."""
         policy, frames = self.builder.make_policy(self.learner, self.seat), self.counters["frames"]
         return make_run_collector(self.cfg, self.env_factory, policy, frames)
 
     def start_pass(
-        self, collector: Any, logger: RunLogger, eval_env: Any, bar: int | None = None
+        self,
+        collector: RunCollector,
+        logger: RunLogger,
+        eval_env: EnvBase,
+        bar: int | None = None,
     ) -> LoopPass:
         """The state of one pass of the loop over ``collector`` (``bar``: its progress bar's
         line, labelled with the seed, where several runs show theirs at once)."""
@@ -185,8 +194,9 @@ class Trainer:
     def _rewarded(self, batch: TensorDictBase) -> TensorDictBase:
         """The batch with every reward component (checked finite), counted in ``frames``."""
         frames, checkpoint = self.counters["frames"], self.layout.checkpoint
-        batch = guards.scored(self.rewards.transform, batch, frames, checkpoint)
-        guards.check_rewards(batch, self.rewards.reward_keys, frames, checkpoint)
+        batch = stops.rewarded(
+            self.rewards.transform, batch, self.rewards.reward_keys, frames, checkpoint
+        )
         self.counters["frames"] += batch.numel()
         return batch
 
@@ -204,7 +214,7 @@ class Trainer:
             c["frames"] > cfg.collector.init_random_frames and len(self.rb) >= cfg.replay.batch_size
         )
 
-    def _sync_policy(self, collector: Any, next_sync: int) -> int:
+    def _sync_policy(self, collector: RunCollector, next_sync: int) -> int:
         """Send the actor to the workers (multi: each batch; ray: each ``weight_sync_every``
         updates); returns the update count of the next Ray sync."""
         col, updates = self.cfg.collector, self.counters["updates"]
@@ -222,7 +232,7 @@ class Trainer:
         for key in self.rewards.reward_keys:
             metrics[f"batch_{key}"] = batch.get(("next", key)).mean().item()
         where = f"frame {self.counters['frames']} (update {self.counters['updates']})"
-        guards.stop_if_not_finite(metrics, where, self.layout.checkpoint)
+        stops.stop_if_not_finite(metrics, where, self.layout.checkpoint)
         return metrics
 
     def _log_training(self, p: LoopPass) -> None:

@@ -1,21 +1,25 @@
 """A run's evaluations during training: the actor's noise-free episodes logged (with each critic
 head's prediction against what they returned), kept in the run's history, the best actor saved,
 and the penalty's multiplier steered on episodes; for each seed's run
-(:class:`~gentlerl.training.run_state.SeedRun`)."""
+(:class:`~gentlerl.training.seed_run.SeedRun`)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from gentlerl.training import run_state
 from gentlerl.training.checkpoint import save_checkpoint
 from gentlerl.training.critic_calibration import evaluation_scalars
 from gentlerl.training.evaluation import evaluate, rank, rollout_episodes, summarize_episodes
 from gentlerl.training.logging import RunLogger
-from gentlerl.training.run_state import SeedRun
+
+if TYPE_CHECKING:
+    from torchrl.envs import EnvBase
+
+    from gentlerl.training.seed_run import SeedRun
 
 
-def final_evaluation(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+def final_evaluation(trainer: SeedRun, logger: RunLogger, eval_env: EnvBase) -> dict[str, float]:
     """The last batch's evaluation where it was at the final frame, else a new one."""
     last = trainer.eval_history[-1] if trainer.eval_history else {"frames": -1}
     if last["frames"] == trainer.counters["frames"]:
@@ -23,7 +27,7 @@ def final_evaluation(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict
     return evaluate_run(trainer, logger, eval_env)
 
 
-def evaluate_run(trainer: SeedRun, logger: RunLogger, eval_env: Any) -> dict[str, float]:
+def evaluate_run(trainer: SeedRun, logger: RunLogger, eval_env: EnvBase) -> dict[str, float]:
     """``logging.eval_episodes`` noise-free episodes of the acting actor, logged and ranked."""
     episodes = trainer.cfg.logging.eval_episodes
     policy, horizon = trainer.policy, trainer.builder.horizon
@@ -51,7 +55,7 @@ def keep_best(trainer: SeedRun, result: dict[str, float]) -> None:
 
 
 def steer(
-    trainer: SeedRun, episodes: list[dict[str, float]], logger: RunLogger, eval_env: Any
+    trainer: SeedRun, episodes: list[dict[str, float]], logger: RunLogger, eval_env: EnvBase
 ) -> None:
     """The penalty head's weight after the finished ``episodes`` (``gentleness.multiplier``),
     or with ``multiplier_episodes`` after that many noise-free episodes at each PID step."""

@@ -1,15 +1,14 @@
 """A run's state as a checkpoint holds it: what a resumed :class:`~gentlerl.training.loop.Trainer`
 needs (networks, optimisers, rewards' models and multiplier, buffers, counters, RNG), and what a
-policy file keeps (config, sizes, actor); and :class:`SeedRun`, what every part of the loop reads
-of one seed's run."""
+policy file keeps (config, sizes, actor)."""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from gentlerl.agent.learner import TrainingState
-from gentlerl.training import guards
+from gentlerl.training import resume
 from gentlerl.training.checkpoint import (
     check_critic_supports,
     critic_supports,
@@ -20,45 +19,7 @@ from gentlerl.training.checkpoint_schema import check_trainer_state
 from gentlerl.training.seeding import rng_state, set_rng_state
 
 if TYPE_CHECKING:
-    from torchrl.data import ReplayBuffer
-    from torchrl.data.replay_buffers.scheduler import LinearScheduler
-
-    from gentlerl.agent import AgentBuilder, Learner
-    from gentlerl.config.layout import RunLayout
-    from gentlerl.data import NStepWriter
-    from gentlerl.objectives import MultiHeadD4PGLoss
-    from gentlerl.rewards import IntrinsicRewards
-    from gentlerl.training.config import TrainConfig
-
-
-class SeedRun(Protocol):
-    """One seed's run as the loop's parts read it (:class:`~gentlerl.training.loop.Trainer` is
-    the one implementation): its config and files, its agent's parts, and the state a checkpoint
-    keeps. Its :attr:`learner` may train other seeds too: :attr:`seat` is its row."""
-
-    cfg: TrainConfig
-    layout: RunLayout
-    builder: AgentBuilder
-    learner: Learner
-    seat: int
-    rewards: IntrinsicRewards
-    rb: ReplayBuffer
-    writer: NStepWriter
-    beta_schedule: LinearScheduler | None
-    counters: dict[str, Any]
-    wall_s: float
-    eval_history: list[dict[str, float]]
-    best_eval: dict[str, float] | None
-    resume_state: dict[str, Any] | None
-    rng: dict[str, Any]  # its random streams between its steps (:func:`~.seeding.own_stream`)
-
-    @property
-    def policy(self) -> Any: ...  # this seed's acting actor
-
-    @property
-    def loss(self) -> MultiHeadD4PGLoss: ...  # this seed's D4PG loss
-
-    def learning(self) -> bool: ...
+    from gentlerl.training.seed_run import SeedRun
 
 
 def policy_state(trainer: SeedRun) -> dict[str, Any]:
@@ -110,7 +71,7 @@ def load_trainer_state(trainer: SeedRun, state: dict[str, Any]) -> None:
         )
     if trainer.beta_schedule is not None:
         trainer.beta_schedule.load_state_dict(state["beta_schedule"])
-    trainer.counters = guards.checked_counters(state["counters"], trainer.layout.checkpoint)
+    trainer.counters = resume.checked_counters(state["counters"], trainer.layout.checkpoint)
     trainer.wall_s = float(state.get("wall_s", 0.0))  # absent in checkpoints before it
     trainer.eval_history = list(state["eval_history"])
     trainer.best_eval = state["best_eval"]

@@ -5,10 +5,13 @@ from __future__ import annotations
 import random
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
+
+if TYPE_CHECKING:
+    from gentlerl.training.seed_run import SeedRun
 
 
 def seed_everything(seed: int) -> None:
@@ -35,7 +38,7 @@ def set_rng_state(state: dict[str, Any]) -> None:
 
 
 @contextmanager
-def own_stream(run: Any) -> Iterator[None]:
+def own_stream(run: SeedRun) -> Iterator[None]:
     """Within: the process's generators hold ``run.rng`` (a :func:`rng_state`); after: the state
     they reached is kept in ``run.rng``. Each seed of a group draws from its own continuing
     stream, as it would alone, whatever the other seeds draw in between."""

@@ -20,6 +20,7 @@ from typing import Any
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.data import Composite, Unbounded
 from torchrl.envs.transforms import Transform
@@ -56,7 +57,7 @@ class TransitionTransform(Transform):
         next_tensordict.update(self.compute(tensordict, next_tensordict))
         return tensordict
 
-    def read(self, tensordict: TensorDictBase | Composite, key: Any) -> Any:
+    def read(self, tensordict: TensorDictBase | Composite, key: NestedKey) -> Any:
         """``tensordict[key]`` (or a spec's entry), else a ``ValueError`` naming the missing key
         and the ones there."""
         value = tensordict.get(key, None)

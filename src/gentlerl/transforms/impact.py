@@ -11,6 +11,7 @@ from torchrl.data import Composite
 
 from gentlerl import keys
 from gentlerl.functional import excess_cost, impact, impact_penalty
+from gentlerl.functional.constraint import check_tolerance
 from gentlerl.transforms.base import TransitionTransform, check_lam
 
 
@@ -150,11 +151,7 @@ class ExcessPenalty(TransitionTransform):
                 f"ExcessPenalty reads one impact key and writes one penalty; got in_keys="
                 f"{in_keys}, out_keys={out_keys}"
             )
-        if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
-            raise ValueError(
-                f"ExcessPenalty: tolerance must be a finite impact > 0, got {tolerance!r}"
-            )
-        self.tolerance = float(tolerance)
+        self.tolerance = check_tolerance(tolerance)
         super().__init__(in_keys=in_keys, out_keys=out_keys)
         self.scalar_out_keys = (out_keys[0],)
 

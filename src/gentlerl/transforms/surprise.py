@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import numbers
 from collections.abc import Iterable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDictBase
@@ -35,6 +35,8 @@ from gentlerl.transforms.base import ModelRewardTransform
 SURPRISE_KINDS = ("nll", "information_gain")
 
 if TYPE_CHECKING:  # the models are passed in; transforms import no model code
+    from torchrl.envs import Transform
+
     from gentlerl.models.ensemble import DynamicsModel, PenaltyModel
 
 
@@ -269,7 +271,7 @@ class PenaltySurprise(ModelRewardTransform):
 
 
 @contextlib.contextmanager
-def frozen_scale(transforms: Iterable[Any]) -> Iterator[None]:
+def frozen_scale(transforms: Iterable[Transform]) -> Iterator[None]:
     """Score with :class:`PenaltySurprise`'s running curiosity scale as it is, not learning
     from the batches (evaluations and diagnostics must not change what training reads)."""
     members = [t for t in transforms if isinstance(t, PenaltySurprise)]

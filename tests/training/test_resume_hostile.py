@@ -7,7 +7,7 @@ import pytest
 
 def test_an_empty_config_history_does_not_crash_a_resume(tmp_path):
     from gentlerl.config.layout import CONFIG_HISTORY
-    from gentlerl.training.guards import record_config_changes
+    from gentlerl.training.resume import record_config_changes
 
     (tmp_path / CONFIG_HISTORY).write_text("")
     state = {"counters": {"frames": 10}, "config": {"seed": 0, "logging": {"eval_episodes": 1}}}

@@ -1,4 +1,4 @@
-"""objectives.models: the ICM loss (Pathak et al. 2017, eq. 7) against its equations computed by
+"""objectives.model_losses: the ICM loss (Pathak et al. 2017, eq. 7) against its equations computed by
 hand on a tiny model, and the ensemble losses' target predictions (``predict_target``).
 
 The target copies' normaliser statistics (``ModelHardUpdate``) are tested in

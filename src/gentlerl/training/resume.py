@@ -1,5 +1,5 @@
-"""What a run checks before it trusts its inputs: the checkpoint it resumes, the settings that
-changed since, and every reward and loss it produces.
+"""The rules of resuming a run: the checkpoint it continues, the settings that changed since,
+and whether it is done.
 
 Resuming (``resume``): ``false`` refuses a run directory that already holds a run, ``true`` needs
 its checkpoint, ``"auto"`` continues it when there is one and starts otherwise. *Structural*
@@ -16,7 +16,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import torch
 import yaml
 
 from gentlerl.config.fields import resumable
@@ -25,17 +24,12 @@ from gentlerl.files import dump_yaml, load_yaml_file, write_atomic
 from gentlerl.training.checkpoint import load_checkpoint
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.migration import group_flat_config
-from gentlerl.transforms.impact import NonFiniteForceError
 
 #: Fields a resumed run may change (declared ``resumable``): how long and how fast it goes on, and
 #: what it logs. The rest shape the saved networks and buffers or the rewards already stored in them.
 SAFE_TO_CHANGE = resumable(TrainConfig)
 #: Not settings of the run: never recorded as changes.
 _LOCATION = frozenset({"run_dir", "resume"})
-
-
-class NonFiniteError(RuntimeError):
-    """A reward or loss became NaN or infinite; training stopped before saving it."""
 
 
 def flatten(config: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -65,8 +59,8 @@ def config_changes(saved: Mapping[str, Any], now: Mapping[str, Any]) -> dict[str
     return {n: (old.get(n), new.get(n)) for n in names if old.get(n) != new.get(n)}
 
 
-def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
-    """The checkpoint to continue the run ``cfg`` (a ``TrainConfig``) from, or ``None`` to start;
+def load_resume_state(cfg: TrainConfig, checkpoint: Path) -> dict[str, Any] | None:
+    """The checkpoint to continue the run ``cfg`` from, or ``None`` to start;
     raises before anything is written.
 
     Raises:
@@ -102,7 +96,7 @@ def load_resume_state(cfg: Any, checkpoint: Path) -> dict[str, Any] | None:
     return state
 
 
-def finished_summary(state: Mapping[str, Any], done_marker: Path, cfg: Any) -> dict | None:
+def finished_summary(state: Mapping[str, Any], done_marker: Path, cfg: TrainConfig) -> dict | None:
     """The final evaluation of a run that is done (not to be run again); else ``None``, and a run
     given a longer ``total_frames`` loses its ``done_marker`` until it is done again."""
     if state["counters"]["frames"] < cfg.collector.total_frames:
@@ -149,24 +143,6 @@ def _history(path: Path) -> list:
     return history
 
 
-def stop_if_not_finite(values: Mapping[str, Any], where: str, checkpoint: Path) -> None:
-    """Raise :class:`NonFiniteError` naming the first NaN / inf value of ``values`` and ``where``
-    (the frames) it appeared; ``values`` maps names to floats or tensors (all elements checked).
-    """
-    for name, value in values.items():
-        finite = (
-            bool(torch.isfinite(value).all())
-            if isinstance(value, torch.Tensor)
-            else math.isfinite(value)
-        )
-        if not finite:
-            raise NonFiniteError(
-                f"non-finite {name} at {where}: training stopped; {checkpoint_note(checkpoint)} "
-                "(a NaN / inf reward or loss: check the env's forces, the config's numbers, the "
-                "learning rates)"
-            )
-
-
 def checked_counters(counters: Mapping[str, Any], checkpoint: Path) -> dict[str, Any]:
     """A checkpoint's ``frames`` / ``updates`` / ``update_credit``: finite and >= 0, else a
     one-line ``ValueError`` naming the file."""
@@ -178,37 +154,3 @@ def checked_counters(counters: Mapping[str, Any], checkpoint: Path) -> dict[str,
     if bad:
         raise ValueError(f"{checkpoint}: counters {bad} must be finite and >= 0; it cannot resume")
     return dict(counters)
-
-
-def scored(transform: Any, batch: Any, frames: int, checkpoint: Path) -> Any:
-    """``transform(batch)`` (the reward transforms on a collected batch that follows the first
-    ``frames``); a NaN / inf force reading stops training as a non-finite reward does."""
-    try:
-        return transform(batch)
-    except NonFiniteForceError as err:
-        where = f"frames {frames + 1}-{frames + batch.numel()}"
-        raise NonFiniteError(
-            f"non-finite force at {where}: training stopped; {checkpoint_note(checkpoint)} "
-            f"({err}; check the env's force sensor)"
-        ) from None
-
-
-def checkpoint_note(checkpoint: Path) -> str:
-    """What a stopped run left to resume from: its last checkpoint, or none yet."""
-    if checkpoint.exists():
-        return f"the last checkpoint {checkpoint} is intact"
-    return "no checkpoint was written yet"
-
-
-def resumable_fault(err: OSError, checkpoint: Path) -> OSError:
-    """``err`` (a fault outside the run: a collector process killed) saying what the run left
-    (:func:`checkpoint_note`) and that ``resume=auto`` continues it."""
-    return type(err)(f"{err}; {checkpoint_note(checkpoint)}: rerun with resume=auto to continue")
-
-
-def check_rewards(batch: Any, reward_keys: list[str], frames: int, checkpoint: Path) -> None:
-    """:func:`stop_if_not_finite` on each ``("next", key)`` reward of a collected ``batch`` whose
-    frames follow the first ``frames``."""
-    where = f"frames {frames + 1}-{frames + batch.numel()}"
-    values = {key: batch.get(("next", key)) for key in reward_keys}
-    stop_if_not_finite(values, where, checkpoint)

@@ -1,4 +1,4 @@
-"""What an env's specs tell the agent (``gentlerl.rewards.specs``)."""
+"""What an env's specs tell the agent (``gentlerl.rewards.env_sizes``)."""
 
 import warnings
 
@@ -17,7 +17,7 @@ from torchrl.envs import (
 from gentlerl import keys
 from gentlerl.config import GentlenessConfig
 from gentlerl.rewards import IntrinsicRewards, SumRewards
-from gentlerl.rewards.specs import (
+from gentlerl.rewards.env_sizes import (
     check_env_keys,
     env_feature_shapes,
     env_sizes,

@@ -10,11 +10,8 @@ import yaml
 
 from gentlerl import keys
 from gentlerl.training import Trainer, load_checkpoint, train
-from gentlerl.training.guards import (
-    NonFiniteError,
-    config_changes,
-    stop_if_not_finite,
-)
+from gentlerl.training.resume import config_changes
+from gentlerl.training.stops import NonFiniteError, stop_if_not_finite
 from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
 
