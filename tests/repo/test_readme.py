@@ -297,3 +297,15 @@ def test_the_tolerance_rule_the_readme_states_is_the_codes():
         in text
     )
     assert tolerance_unit(PAPER_LAMBDA_2) == 1.0  # the hand's newtons, unscaled
+
+
+def test_which_gentleness_numbers_stand_in_the_results():
+    """Every decimal number of the README's "Which gentleness to use" table is in docs/RESULTS.md
+    (the Method IV tables there are generated from their CSVs: tests/repo/test_generated_tables.py)."""
+    text = README.read_text()
+    section = text[text.index("## Which gentleness to use") :]
+    section = section[: section.index("\n## ", 1)]
+    numbers = re.findall(r"\d+\.\d+", section)
+    assert numbers, "the section states no measured number"
+    results = (README.parent / "docs" / "RESULTS.md").read_text()
+    assert [n for n in numbers if n not in results] == []
