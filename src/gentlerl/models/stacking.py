@@ -1,13 +1,15 @@
-"""Several seeds' parameters as one stack: built, shared with each seed's modules, and the
-batched optimiser's state read and written per seed.
+"""Several seeds' parameters as one stack: built once, shared with each seed's modules, and
+trained by one fused Adam whose state is read and written per seed.
 
 :class:`~gentlerl.agent.Learner` and :class:`~gentlerl.rewards.model_step.ModelStep` update the
 networks of S seeds (S = 1 for a plain run) as one step over parameters with a leading seed
-axis. These helpers make that stack (:func:`stack_parameters`), point each seed's own tensors at
-its row of it so that the seed's modules act, evaluate and checkpoint with the updated values
-and no copy (:func:`share_rows`), and convert the batched Adam's state to and from each seed's
-own (:func:`optimizer_row`, :func:`stack_optimizer_rows`), so that a seed's checkpoint is that
-of a run of its own.
+axis; both hold a :class:`SeedStack`, the one place that stack and its optimiser are made. The
+helpers below it make the stack (:func:`stack_parameters`), point each seed's own tensors at its
+row of it so that the seed's modules act, evaluate and checkpoint with the updated values and no
+copy (:func:`share_rows`; both at once: :func:`shared_stack`, which the r^sp re-scorer uses for
+the seeds' target models), and convert the batched Adam's state to and from each seed's own
+(:func:`optimizer_row`, :func:`stack_optimizer_rows`, :func:`load_optimizer_row`), so that a
+seed's checkpoint is that of a run of its own.
 """
 
 from __future__ import annotations
@@ -226,6 +228,81 @@ def _renumbered(state: Mapping[str, Any]) -> dict[str, Any]:
         groups.append({**group, "params": list(range(start, start + len(group["params"])))})
         start += len(group["params"])
     return {"state": {new[k]: v for k, v in state["state"].items()}, "param_groups": groups}
+
+
+class SeedStack:
+    """S seeds' parameters as one ``[S, ...]`` stack, each seed's own tensors views of its row,
+    trained by one fused Adam: built once, for the seeds asked for.
+
+    :attr:`params` is :func:`shared_stack` of ``per_seed`` (one structure: each seed's modules
+    then read and are written by its row). :attr:`optimizer` is one fused Adam over the stack's
+    weights (``nn.Parameter``): with one step size ``lr`` all of them as one group; with a step
+    size per top-level entry (e.g. ``{"actor": 1e-4, "value": 1e-4}``) one group per entry, in
+    that order, and the other entries' tensors frozen (target copies: no gradient, no moments).
+    Adam is elementwise and the seeds' rows are disjoint, so this one Adam over ``[S, ...]`` is S
+    Adams, each seed's moments its row: :meth:`row` is seed s's state as a run of its own saves
+    it, :meth:`load_row` puts such a state back (checked first, :func:`optimizer_row_problem`).
+
+    Args:
+        per_seed: each seed's parameters (``[]``-shaped tensordicts of one structure).
+        lr: one step size, or one per trained top-level entry.
+        capturable: Adam's state on the device, so the step can be replayed as a CUDA graph.
+    """
+
+    def __init__(
+        self,
+        per_seed: Sequence[TensorDictBase],
+        lr: float | Mapping[str, float],
+        *,
+        capturable: bool = False,
+    ) -> None:
+        self.params = shared_stack(per_seed)
+        if isinstance(lr, Mapping):
+            for name in self.params.keys() - lr.keys():
+                self.params[name].apply_(lambda p: p.requires_grad_(False))
+            parts = [(self.params[name], step) for name, step in lr.items()]
+        else:
+            parts = [(self.params, lr)]
+        groups = [
+            {
+                "params": [p for p in td.values(True, True) if isinstance(p, nn.Parameter)],
+                "lr": step,
+            }
+            for td, step in parts
+        ]
+        #: Adam's kernels, also for a state saved with others: one fused kernel per group
+        #: instead of ~10 small ones per parameter.
+        self.options = {"fused": True, "foreach": None, "capturable": capturable}
+        self.optimizer = torch.optim.Adam(groups, **self.options)
+
+    @property
+    def num_seeds(self) -> int:
+        """S, the stack's rows."""
+        return self.params.batch_size[0]
+
+    def descend(self, loss: torch.Tensor) -> None:
+        """One Adam step of every seed down ``loss`` (their losses summed: the rows are
+        disjoint, so each seed's gradient is its own loss's)."""
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+
+    def row(self, seed: int) -> dict[str, Any]:
+        """Seed ``seed``'s Adam state, as a run of its own saves it (:func:`optimizer_row`)."""
+        return optimizer_row(self.optimizer.state_dict(), seed)
+
+    def load_row(self, state: Mapping[str, Any], seed: int) -> None:
+        """Seed ``seed``'s saved Adam state (:meth:`row`'s format) into its row, run with
+        :attr:`options` whatever it was saved with (:func:`load_optimizer_row`)."""
+        load_optimizer_row(self.optimizer, state, seed, self.options)
+
+
+def shared_stack(per_seed: Sequence[TensorDictBase]) -> TensorDictBase:
+    """:func:`stack_parameters` of ``per_seed``, each seed's own tensors then views of its row
+    (:func:`share_rows`)."""
+    stacked = stack_parameters(per_seed)
+    share_rows(stacked, per_seed)
+    return stacked
 
 
 def seed_stack(batches: Sequence[TensorDictBase]) -> TensorDictBase:
