@@ -86,7 +86,7 @@ def test_a_seed_stack_is_s_adams_one_group_per_entry_the_others_frozen():
     own = [TensorDict({"online": TensorDict.from_module(a), "target": TensorDict.from_module(b)})
            for a, b in modules]  # fmt: skip
     stack = SeedStack(own, {"online": 0.1}, capturable=False)
-    assert stack.num_seeds == 2 and stack.options["fused"]
+    assert stack.params.batch_size == (2,) and stack.options["fused"]
     assert [g["lr"] for g in stack.optimizer.param_groups] == [0.1]
     assert len(stack.optimizer.param_groups[0]["params"]) == 2  # weight, bias: not the count
     assert not stack.params["target", "weight"].requires_grad

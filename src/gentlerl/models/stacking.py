@@ -231,22 +231,15 @@ def _renumbered(state: Mapping[str, Any]) -> dict[str, Any]:
 
 
 class SeedStack:
-    """S seeds' parameters as one ``[S, ...]`` stack, each seed's own tensors views of its row,
-    trained by one fused Adam: built once, for the seeds asked for.
+    """S seeds' parameters as one ``[S, ...]`` stack trained by one fused Adam, built once for the
+    seeds asked for; the Learner's and the reward models' (S = 1 for a plain run).
 
-    :attr:`params` is :func:`shared_stack` of ``per_seed`` (one structure: each seed's modules
-    then read and are written by its row). :attr:`optimizer` is one fused Adam over the stack's
-    weights (``nn.Parameter``): with one step size ``lr`` all of them as one group; with a step
-    size per top-level entry (e.g. ``{"actor": 1e-4, "value": 1e-4}``) one group per entry, in
-    that order, and the other entries' tensors frozen (target copies: no gradient, no moments).
-    Adam is elementwise and the seeds' rows are disjoint, so this one Adam over ``[S, ...]`` is S
-    Adams, each seed's moments its row: :meth:`row` is seed s's state as a run of its own saves
-    it, :meth:`load_row` puts such a state back (checked first, :func:`optimizer_row_problem`).
-
-    Args:
-        per_seed: each seed's parameters (``[]``-shaped tensordicts of one structure).
-        lr: one step size, or one per trained top-level entry.
-        capturable: Adam's state on the device, so the step can be replayed as a CUDA graph.
+    :attr:`params` is :func:`shared_stack` of ``per_seed`` (each seed's modules read and are
+    written by its row, no copy). :attr:`optimizer` is one fused Adam over the stack's weights:
+    one group at step size ``lr``, or one group per top-level entry of ``lr`` (in its order), the
+    other entries frozen (target copies). Adam is elementwise and the rows disjoint, so it is S
+    Adams: :meth:`row` is seed s's state as a run of its own saves it, :meth:`load_row` puts one
+    back (checked first, :func:`optimizer_row_problem`). ``capturable``: for a CUDA graph.
     """
 
     def __init__(
@@ -270,15 +263,9 @@ class SeedStack:
             }
             for td, step in parts
         ]
-        #: Adam's kernels, also for a state saved with others: one fused kernel per group
-        #: instead of ~10 small ones per parameter.
+        #: Adam's kernels (also for a state saved with others): fused, one per group.
         self.options = {"fused": True, "foreach": None, "capturable": capturable}
         self.optimizer = torch.optim.Adam(groups, **self.options)
-
-    @property
-    def num_seeds(self) -> int:
-        """S, the stack's rows."""
-        return self.params.batch_size[0]
 
     def descend(self, loss: torch.Tensor) -> None:
         """One Adam step of every seed down ``loss`` (their losses summed: the rows are

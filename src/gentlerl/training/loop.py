@@ -112,9 +112,8 @@ class Trainer:
 
     @property
     def learner(self) -> Learner:
-        """The :class:`~gentlerl.agent.Learner` training this seed's :attr:`loss`: the one a
-        :class:`~gentlerl.training.lockstep.Lockstep` of several seeds gave it (this seed its
-        row :attr:`seat`), else its own, built on first use."""
+        """The learner of this seed's :attr:`loss`: a seed group's (its row :attr:`seat`), else
+        its own, built on first use."""
         if self._learner is None:
             self._learner = configured_learner(self._loss, self.cfg.learner)
         return self._learner
