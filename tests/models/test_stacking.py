@@ -4,8 +4,10 @@ import pytest
 import torch
 from tensordict import TensorDict
 from torch import nn
+from torch.func import functional_call
 
 from gentlerl.models.stacking import (
+    SeedStack,
     load_optimizer_row,
     optimizer_row,
     share_rows,
@@ -75,3 +77,36 @@ def test_a_seeds_row_of_the_batched_adam_steps_as_if_it_had_stepped_alone():
         torch.testing.assert_close(fresh.state_dict()["state"][0][key], stacked["state"][0][key])
     with pytest.raises(ValueError, match="needs at least one seed's optimiser state"):
         stack_optimizer_rows([])
+
+
+def test_a_seed_stack_is_s_adams_one_group_per_entry_the_others_frozen():
+    """SeedStack: the rows shared with each seed's modules, one fused Adam whose groups are the
+    entries given a step size (the rest frozen), and each seed's row of it a lone Adam's state."""
+    modules = [[_module(s), _module(10 + s)] for s in (0, 1)]
+    own = [TensorDict({"online": TensorDict.from_module(a), "target": TensorDict.from_module(b)})
+           for a, b in modules]  # fmt: skip
+    stack = SeedStack(own, {"online": 0.1}, capturable=False)
+    assert stack.params.batch_size == (2,) and stack.options["fused"]
+    assert [g["lr"] for g in stack.optimizer.param_groups] == [0.1]
+    assert len(stack.optimizer.param_groups[0]["params"]) == 2  # weight, bias: not the count
+    assert not stack.params["target", "weight"].requires_grad
+    x = torch.randn(5, 3)
+    alone = [nn.Linear(3, 2) for _ in (0, 1)]
+    alone_opt = []
+    for s, lin in enumerate(alone):
+        lin.load_state_dict({k: v for k, v in modules[s][0].state_dict().items() if k != "count"})
+        alone_opt.append(torch.optim.Adam(lin.parameters(), lr=0.1))
+    for _ in range(2):
+        rows = [{k: stack.params["online", k][s] for k in ("weight", "bias")} for s in (0, 1)]
+        outs = [functional_call(m[0], row, (x,)) for m, row in zip(modules, rows, strict=True)]
+        stack.descend(sum(out.square().sum() for out in outs))  # each seed's module, its row
+        for lin, opt in zip(alone, alone_opt, strict=True):
+            opt.zero_grad()
+            lin(x).square().sum().backward()
+            opt.step()
+    for s in (0, 1):
+        torch.testing.assert_close(modules[s][0].weight, alone[s].weight)
+        row = stack.row(s)["state"][0]["exp_avg"]
+        torch.testing.assert_close(row, alone_opt[s].state_dict()["state"][0]["exp_avg"])
+    stack.load_row(stack.row(0), 1)
+    assert torch.equal(*stack.optimizer.state_dict()["state"][0]["exp_avg"])

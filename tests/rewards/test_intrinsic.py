@@ -282,8 +282,9 @@ def test_the_models_are_seeded_0_and_step_eagerly_by_default(monkeypatch):
     monkeypatch.setattr(compiling, "compile_unavailable", lambda: "no C++ compiler (test)")
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # eager: no compile to fall back from
-        IntrinsicRewards("r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={})
+        eager = IntrinsicRewards("r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={})
+        assert eager.steps
     with pytest.warns(UserWarning, match="no C.. compiler \\(test\\); the reward models runs"):
-        IntrinsicRewards(
+        assert IntrinsicRewards(  # the steps are built (compiled) on first use
             "r+rf+rsp", settings, obs_dim=63, action_dim=20, feature_shapes={}, compile=True
-        )
+        ).steps

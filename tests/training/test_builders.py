@@ -5,6 +5,7 @@ import pytest
 import yaml
 from torchrl.envs import RenameTransform, TransformedEnv
 
+from gentlerl.agent.builder import configured_learner
 from gentlerl.config.layout import RunLayout
 from gentlerl.training.builders import make_agent, make_run_collector, write_config
 from gentlerl.training.logging import Progress
@@ -45,7 +46,7 @@ def test_make_agent_refuses_an_env_without_the_keys_the_run_reads(tmp_path):
 def test_the_run_collector_collects_what_the_run_has_left(tmp_path):
     cfg = tiny_config(tmp_path, total_frames=500, init_random_frames=200, frames_per_batch=100)
     agent = make_agent(cfg, toy_env)
-    policy = agent.builder.make_policy(agent.learner)
+    policy = agent.builder.make_policy(configured_learner(agent.loss, cfg.learner))
     collector = make_run_collector(cfg, toy_env, policy, frames=300)
     try:
         assert collector.init_random_frames == 0

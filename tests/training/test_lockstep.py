@@ -3,6 +3,7 @@
 import pytest
 import torch
 
+from gentlerl.models.stacking import SeedStack
 from gentlerl.training import Lockstep, Trainer
 from tests.helpers import read_scalar, tiny_config, toy_env
 
@@ -38,6 +39,21 @@ def test_several_seeds_share_one_learner_and_one_step_per_model_each_its_own_row
         own = trainer.loss.actor_network_params
         for key, value in own.items(True, True):
             assert torch.equal(value, row[key])  # no copy: the seed's tensors read its row
+
+
+def test_a_group_builds_each_stack_once_for_its_seeds_and_no_seed_its_own(tmp_path, monkeypatch):
+    built = []
+    init = SeedStack.__init__
+
+    def counted(self, per_seed, *args, **kwargs):
+        built.append(len(per_seed))
+        init(self, per_seed, *args, **kwargs)
+
+    monkeypatch.setattr(SeedStack, "__init__", counted)
+    trainers = [Trainer(tiny_config(tmp_path / f"s{s}", seed=s), toy_env) for s in (0, 1)]
+    assert built == []  # the seeds' learners and model steps are not built on their own
+    loop = Lockstep(trainers)
+    assert built == [2] * (1 + len(loop.models)) and len(loop.models) >= 1
 
 
 def test_a_lockstep_is_refused_without_seeds_or_with_checkpoints_at_different_frames(tmp_path):

@@ -122,6 +122,12 @@ class AgentBuilder:
         check_env_keys(env, self.rewards.transform, self.reward_keys)
 
     def make_learner(self) -> Learner:
+        """A :class:`Learner` of one seed over :meth:`make_loss` (``learner``'s settings)."""
+        return configured_learner(self.make_loss(), self.cfg.learner)
+
+    def make_loss(self) -> MultiHeadD4PGLoss:
+        """A new actor and critic (drawn from torch's generator) in the variant's multi-head
+        D4PG loss, on ``learner.device``, its head weights those the rewards start with."""
         net, learner = self.cfg.network, self.cfg.learner
         actor = make_actor(self.obs_dim, self.action_dim, net.actor_hidden)
         v_min, v_max = self.supports
@@ -146,7 +152,7 @@ class AgentBuilder:
         loss.set_keys(terminated=keys.NSTEP_TERMINATED)
         for key, weight in self.rewards.head_weights().items():  # until the first PID step
             loss.set_head_weight(key, weight)
-        return configured_learner(loss.to(learner.device), learner)
+        return loss.to(learner.device)
 
     def make_policy(self, learner: Learner, seed: int = 0) -> torch.nn.Module:
         """The learner's acting actor of seed ``seed`` (:meth:`Learner.policy_of`, on the CPU)

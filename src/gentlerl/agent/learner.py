@@ -1,10 +1,9 @@
 """``Learner``: the multi-head D4PG update of S agents (seeds) as one step; S = 1 for a plain run.
 
-Every parameter of the online and target actor and critics gets a leading seed axis
-(:func:`~gentlerl.models.stacking.stack_parameters` of each loss's
-:meth:`~gentlerl.objectives.MultiHeadD4PGLoss.network_params`), and each seed's own tensors are
-made views of its row (:func:`~gentlerl.models.stacking.share_rows`), so a seed's actor acts,
-evaluates and is checkpointed with the trained weights and no copy. The loss's pure
+Every parameter of the online and target actor and critics gets a leading seed axis, each
+seed's own tensors views of its row, in one :class:`~gentlerl.models.stacking.SeedStack` of the
+losses' :meth:`~gentlerl.objectives.MultiHeadD4PGLoss.network_params` (with its fused Adam), so
+a seed's actor acts, evaluates and is checkpointed with the trained weights and no copy. The loss's pure
 :meth:`~gentlerl.objectives.MultiHeadD4PGLoss.losses` runs on every row: one ``torch.vmap`` over
 the seeds when S > 1 (the kernels of one agent, S times wider), a plain call on row 0 when
 S = 1. The seeds stay independent: each loss reads its own parameters, the summed loss gives each
@@ -23,13 +22,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 from gentlerl.functional.constraint import is_finite_number
-from gentlerl.models.stacking import (
-    load_optimizer_row,
-    optimizer_row,
-    over_seeds,
-    share_rows,
-    stack_parameters,
-)
+from gentlerl.models.stacking import SeedStack, over_seeds
 from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.objectives.launch import compile_step
 
@@ -96,24 +89,17 @@ class Learner:
         self.losses, self.num_seeds, self.device = losses, len(losses), device
         for seed in losses:  # their targets are copied here (TorchRL warns of a loss without)
             seed._has_update_associated = dict.fromkeys(seed._has_update_associated, True)
-        self.params = stack_parameters([seed.network_params() for seed in losses])
-        for name in ("target_actor", "target_value"):
-            self.params[name].apply_(lambda p: p.requires_grad_(False))
-        share_rows(self.params, [seed.network_params() for seed in losses])
+        self.stack = SeedStack(
+            [seed.network_params() for seed in losses],
+            {"actor": lr_actor, "value": lr_critic},  # the targets: frozen
+            capturable=cudagraphs,
+        )
+        self.params, self.optimizer = self.stack.params, self.stack.optimizer
         separate = device.type != "cpu" if separate_policy is None else separate_policy
         self._policies = [
             copy.deepcopy(seed.actor_network).cpu() if separate else seed.actor_network
             for seed in losses
         ]
-        # One fused kernel per parameter group instead of ~10 small ones per parameter.
-        self._adam_options = {"fused": True, "foreach": None, "capturable": cudagraphs}
-        self.optimizer = torch.optim.Adam(
-            [
-                {"params": list(self.params["actor"].values(True, True)), "lr": lr_actor},
-                {"params": list(self.params["value"].values(True, True)), "lr": lr_critic},
-            ],
-            **self._adam_options,
-        )
         self.target_update_period = target_update_period
         #: Updates since the last target copy (a copy comes when it reaches the period).
         self.target_counter = 0
@@ -159,10 +145,8 @@ class Learner:
     def _gradient_step(self, batch: TensorDictBase) -> TensorDict:
         """Every seed's losses, one backward of their sum, one Adam step; returns the ``[S]``
         losses with the ``[S, B]`` priorities, with no host sync."""
-        self.optimizer.zero_grad(set_to_none=True)
         out, priority = self._losses(batch, self.params)
-        (out["loss_value"] + out["loss_actor"]).sum().backward()  # disjoint parameters
-        self.optimizer.step()
+        self.stack.descend((out["loss_value"] + out["loss_actor"]).sum())  # disjoint parameters
         out = out.detach()
         out.set(self._priority_key, priority)
         return out
@@ -208,7 +192,7 @@ class Learner:
         s = self._seat(seed)
         return TrainingState(
             networks=self.losses[s].state_dict(),
-            optimizer=optimizer_row(self.optimizer.state_dict(), s),
+            optimizer=self.stack.row(s),
             target_counter=self.target_counter,
         )
 
@@ -218,7 +202,7 @@ class Learner:
         ones used."""
         s = self._seat(seed)
         self.losses[s].load_state_dict(state.networks)  # into the shared rows, in place
-        load_optimizer_row(self.optimizer, state.optimizer, s, self._adam_options)
+        self.stack.load_row(state.optimizer, s)
         self.target_counter = int(state.target_counter) % self.target_update_period
         self.sync_policy(s)
 
@@ -267,6 +251,5 @@ class SeedBatchedLearner(Learner):
 
     def optimizer_rows(self, optimizers: Sequence[torch.optim.Optimizer]) -> None:
         """Each seed's own optimiser given its row of this one's state (:meth:`state_of`)."""
-        state = self.optimizer.state_dict()
         for s, optimizer in enumerate(optimizers):
-            optimizer.load_state_dict(optimizer_row(state, s))
+            optimizer.load_state_dict(self.stack.row(s))

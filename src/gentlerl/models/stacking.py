@@ -1,13 +1,15 @@
-"""Several seeds' parameters as one stack: built, shared with each seed's modules, and the
-batched optimiser's state read and written per seed.
+"""Several seeds' parameters as one stack: built once, shared with each seed's modules, and
+trained by one fused Adam whose state is read and written per seed.
 
 :class:`~gentlerl.agent.Learner` and :class:`~gentlerl.rewards.model_step.ModelStep` update the
 networks of S seeds (S = 1 for a plain run) as one step over parameters with a leading seed
-axis. These helpers make that stack (:func:`stack_parameters`), point each seed's own tensors at
-its row of it so that the seed's modules act, evaluate and checkpoint with the updated values
-and no copy (:func:`share_rows`), and convert the batched Adam's state to and from each seed's
-own (:func:`optimizer_row`, :func:`stack_optimizer_rows`), so that a seed's checkpoint is that
-of a run of its own.
+axis; both hold a :class:`SeedStack`, the one place that stack and its optimiser are made. The
+helpers below it make the stack (:func:`stack_parameters`), point each seed's own tensors at its
+row of it so that the seed's modules act, evaluate and checkpoint with the updated values and no
+copy (:func:`share_rows`; both at once: :func:`shared_stack`, which the r^sp re-scorer uses for
+the seeds' target models), and convert the batched Adam's state to and from each seed's own
+(:func:`optimizer_row`, :func:`stack_optimizer_rows`, :func:`load_optimizer_row`), so that a
+seed's checkpoint is that of a run of its own.
 """
 
 from __future__ import annotations
@@ -226,6 +228,68 @@ def _renumbered(state: Mapping[str, Any]) -> dict[str, Any]:
         groups.append({**group, "params": list(range(start, start + len(group["params"])))})
         start += len(group["params"])
     return {"state": {new[k]: v for k, v in state["state"].items()}, "param_groups": groups}
+
+
+class SeedStack:
+    """S seeds' parameters as one ``[S, ...]`` stack trained by one fused Adam, built once for the
+    seeds asked for; the Learner's and the reward models' (S = 1 for a plain run).
+
+    :attr:`params` is :func:`shared_stack` of ``per_seed`` (each seed's modules read and are
+    written by its row, no copy). :attr:`optimizer` is one fused Adam over the stack's weights:
+    one group at step size ``lr``, or one group per top-level entry of ``lr`` (in its order), the
+    other entries frozen (target copies). Adam is elementwise and the rows disjoint, so it is S
+    Adams: :meth:`row` is seed s's state as a run of its own saves it, :meth:`load_row` puts one
+    back (checked first, :func:`optimizer_row_problem`). ``capturable``: for a CUDA graph.
+    """
+
+    def __init__(
+        self,
+        per_seed: Sequence[TensorDictBase],
+        lr: float | Mapping[str, float],
+        *,
+        capturable: bool = False,
+    ) -> None:
+        self.params = shared_stack(per_seed)
+        if isinstance(lr, Mapping):
+            for name in self.params.keys() - lr.keys():
+                self.params[name].apply_(lambda p: p.requires_grad_(False))
+            parts = [(self.params[name], step) for name, step in lr.items()]
+        else:
+            parts = [(self.params, lr)]
+        groups = [
+            {
+                "params": [p for p in td.values(True, True) if isinstance(p, nn.Parameter)],
+                "lr": step,
+            }
+            for td, step in parts
+        ]
+        #: Adam's kernels (also for a state saved with others): fused, one per group.
+        self.options = {"fused": True, "foreach": None, "capturable": capturable}
+        self.optimizer = torch.optim.Adam(groups, **self.options)
+
+    def descend(self, loss: torch.Tensor) -> None:
+        """One Adam step of every seed down ``loss`` (their losses summed: the rows are
+        disjoint, so each seed's gradient is its own loss's)."""
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+
+    def row(self, seed: int) -> dict[str, Any]:
+        """Seed ``seed``'s Adam state, as a run of its own saves it (:func:`optimizer_row`)."""
+        return optimizer_row(self.optimizer.state_dict(), seed)
+
+    def load_row(self, state: Mapping[str, Any], seed: int) -> None:
+        """Seed ``seed``'s saved Adam state (:meth:`row`'s format) into its row, run with
+        :attr:`options` whatever it was saved with (:func:`load_optimizer_row`)."""
+        load_optimizer_row(self.optimizer, state, seed, self.options)
+
+
+def shared_stack(per_seed: Sequence[TensorDictBase]) -> TensorDictBase:
+    """:func:`stack_parameters` of ``per_seed``, each seed's own tensors then views of its row
+    (:func:`share_rows`)."""
+    stacked = stack_parameters(per_seed)
+    share_rows(stacked, per_seed)
+    return stacked
 
 
 def seed_stack(batches: Sequence[TensorDictBase]) -> TensorDictBase:

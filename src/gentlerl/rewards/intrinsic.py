@@ -117,11 +117,9 @@ class IntrinsicRewards(Rescoring):
         self.transform = RewardChain(
             *transforms, obs_key=ing.obs_key, force_key=force_key, device=self.device
         )
-        #: Each model's step, and this seed's row in it (0 unless :meth:`share_steps`).
-        self._steps = {
-            name: ModelStep(loss, settings.lr_model, **self._launch)
-            for name, loss in self.losses.items()
-        }
+        #: Each model's step (built on first use, unless :meth:`share_steps` gave the group's),
+        #: and this seed's row in it.
+        self._steps: dict[str, ModelStep] | None = None
         self._seat = 0
         #: The penalty's weight steered toward ``settings.tolerance`` (``multiplier=pid``).
         self.multiplier = (
@@ -245,14 +243,14 @@ class IntrinsicRewards(Rescoring):
         ``num_updates``: the count including this update (default: one more than the last);
         ``reward_delay`` and the target periods are counted in these updates.
         """
-        if any(step.num_seeds != 1 for step in self._steps.values()):
+        if any(step.num_seeds != 1 for step in self.steps.values()):
             raise RuntimeError(
                 "IntrinsicRewards.update: these models step with other seeds' (share_steps); "
                 "the group's update steps them"
             )
         batches = self.model_batches()
         metrics = {
-            f"model_{name}": self._steps[name](batch.unsqueeze(0)).item()
+            f"model_{name}": self.steps[name](batch.unsqueeze(0)).item()
             for name, batch in batches.items()
         }
         self.step(num_updates)
@@ -260,17 +258,22 @@ class IntrinsicRewards(Rescoring):
 
     @property
     def steps(self) -> dict[str, ModelStep]:
-        """Each model's :class:`~gentlerl.rewards.model_step.ModelStep` (shared by a group's
-        seeds after :meth:`share_steps`)."""
+        """Each model's :class:`~gentlerl.rewards.model_step.ModelStep`: this seed's own, built
+        on first use, or the group's after :meth:`share_steps` (then no own one is built)."""
+        if self._steps is None:
+            self._steps = {
+                name: ModelStep(loss, self.settings.lr_model, **self._launch)
+                for name, loss in self.losses.items()
+            }
         return dict(self._steps)
 
     def share_steps(self, steps: Mapping[str, ModelStep], seat: int) -> None:
         """Train this seed's models as row ``seat`` of ``steps`` (one per model, over several
         seeds' losses, this one's among them), whose caller steps them; the state this seed
         saves and loads is its row's."""
-        if set(steps) != set(self._steps):
+        if set(steps) != set(self.losses):
             raise ValueError(
-                f"share_steps: steps for {sorted(steps)}, models {sorted(self._steps)}"
+                f"share_steps: steps for {sorted(steps)}, models {sorted(self.losses)}"
             )
         for name, step in steps.items():
             if step.losses[seat] is not self.losses[name]:
@@ -296,7 +299,7 @@ class IntrinsicRewards(Rescoring):
         """Models, optimisers and schedule (the buffer is saved with the other buffers)."""
         return {
             "losses": {name: loss.state_dict() for name, loss in self.losses.items()},
-            "optimizers": {n: st.optimizer_state(self._seat) for n, st in self._steps.items()},
+            "optimizers": {n: st.optimizer_state(self._seat) for n, st in self.steps.items()},
             "active": self.intrinsic_on,
             "target_counters": {name: u.counter for name, u in self._updaters.items()},
             "num_updates": self.num_updates,
@@ -308,7 +311,7 @@ class IntrinsicRewards(Rescoring):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         for name, loss in self.losses.items():
             loss.load_state_dict(state["losses"][name])
-            self._steps[name].load_optimizer_state(state["optimizers"][name], self._seat)
+            self.steps[name].load_optimizer_state(state["optimizers"][name], self._seat)
         for t in self.gated_transforms:
             t.active.fill_(bool(state["active"]))
         for name, counter in state["target_counters"].items():

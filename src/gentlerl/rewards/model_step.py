@@ -1,10 +1,11 @@
 """``ModelStep``: the gradient step of S seeds' reward models as one step; S = 1 for one run.
 
 The models behind the intrinsic rewards (the penalty and dynamics ensembles, ICM) take one Adam
-step per learner update. As the D4PG :class:`~gentlerl.agent.Learner` does for its heads, each
-seed's ``model_params`` (weights and normaliser statistics) get a leading seed axis, each seed's
-own tensors are views of its row (its reward transform and target copy read the trained model
-with no copy), and the loss's pure ``losses(batch, params)`` runs on every row: one
+step per learner update. As the D4PG :class:`~gentlerl.agent.Learner` does for its heads, the
+seeds' ``model_params`` (weights and normaliser statistics) are one
+:class:`~gentlerl.models.stacking.SeedStack` (a leading seed axis, each seed's own tensors views
+of its row: its reward transform and target copy read the trained model with no copy; one fused
+Adam), and the loss's pure ``losses(batch, params)`` runs on every row: one
 ``torch.vmap`` for several seeds (their bootstrap draws differ, ``randomness="different"``), a
 plain call on row 0 for one. On a GPU an eager step is a few hundred small kernels (4.5 ms for
 the paper's penalty ensemble on an H200, against 0.3 ms replayed as a CUDA graph), so the step
@@ -24,13 +25,7 @@ from torch import nn
 from torchrl.objectives import LossModule
 
 from gentlerl.functional.constraint import is_finite_number
-from gentlerl.models.stacking import (
-    load_optimizer_row,
-    optimizer_row,
-    over_seeds,
-    share_rows,
-    stack_parameters,
-)
+from gentlerl.models.stacking import SeedStack, over_seeds
 from gentlerl.objectives.launch import compile_step
 
 
@@ -74,12 +69,8 @@ class ModelStep:
         if cudagraphs and device.type != "cuda":
             raise ValueError(f"cudagraphs needs the models on a CUDA device, these are on {device}")
         self.losses, self.num_seeds, self.loss = losses, len(losses), losses[0]
-        self.params = stack_parameters([seed.model_params for seed in losses])
-        share_rows(self.params, [seed.model_params for seed in losses])
-        weights = [v for v in self.params.values(True, True) if isinstance(v, nn.Parameter)]
-        # fused: one kernel per step instead of ~10 per parameter tensor
-        self._adam_options = {"fused": True, "capturable": cudagraphs}
-        self.optimizer = torch.optim.Adam(weights, lr=lr, **self._adam_options)
+        self.stack = SeedStack([seed.model_params for seed in losses], lr, capturable=cudagraphs)
+        self.params, self.optimizer = self.stack.params, self.stack.optimizer
         self._total = compile_step(
             over_seeds(self._summed_loss, self.num_seeds),
             compile=compile,
@@ -91,10 +82,8 @@ class ModelStep:
         return sum(v for k, v in self.loss.losses(batch, params).items() if k.startswith("loss_"))
 
     def _gradient_step(self, batch: TensorDictBase) -> TensorDict:
-        self.optimizer.zero_grad(set_to_none=True)
         total = self._total(batch, self.params)
-        total.sum().backward()
-        self.optimizer.step()
+        self.stack.descend(total.sum())
         return TensorDict({"loss": total.detach()})  # CUDA graphs return tensordicts
 
     def __call__(self, batch: TensorDictBase) -> torch.Tensor:
@@ -107,12 +96,12 @@ class ModelStep:
 
     def optimizer_state(self, seed: int = 0) -> dict[str, Any]:
         """Seed ``seed``'s row of Adam's state: what a run of its own saves."""
-        return optimizer_row(self.optimizer.state_dict(), seed)
+        return self.stack.row(seed)
 
     def load_optimizer_state(self, state: Mapping[str, Any], seed: int = 0) -> None:
         """Seed ``seed``'s saved Adam state (:meth:`optimizer_state`'s format) into its row, run
         with this step's kernels (fused, capturable) whatever the saved one used."""
-        load_optimizer_row(self.optimizer, state, seed, self._adam_options)
+        self.stack.load_row(state, seed)
 
 
 class SeedBatchedModelStep(ModelStep):

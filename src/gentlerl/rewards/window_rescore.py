@@ -29,7 +29,7 @@ import torch
 from tensordict import TensorDictBase
 
 from gentlerl.data import contact_step_sum, nstep_return, window_of
-from gentlerl.models.stacking import seed_stack, share_rows, stack_parameters
+from gentlerl.models.stacking import seed_stack, shared_stack
 from gentlerl.transforms import PenaltySurprise
 
 if TYPE_CHECKING:
@@ -67,11 +67,7 @@ class WindowRescorer:
         self.transforms: list[list[PenaltySurprise]] = (
             [list(ts) for ts in zip(*per_seed, strict=True)] if self.vmapped else []
         )
-        self.params = []
-        for seeds in self.transforms:
-            stacked = stack_parameters([t.params for t in seeds])
-            share_rows(stacked, [t.params for t in seeds])
-            self.params.append(stacked)
+        self.params = [shared_stack([t.params for t in seeds]) for seeds in self.transforms]
         self._curiosity = [
             torch.vmap(partial(_curiosity, seeds[0]), (0, 0, 0)) for seeds in self.transforms
         ]

@@ -17,13 +17,13 @@ from torchrl.envs import EnvBase, TransformedEnv
 
 from gentlerl import keys
 from gentlerl.agent.builder import AgentBuilder
-from gentlerl.agent.learner import Learner
 from gentlerl.config import CollectorConfig
 from gentlerl.config.groups import AUTO_NUM_ENVS
 from gentlerl.config.layout import RunLayout
 from gentlerl.data import NStepWriter
 from gentlerl.files import dump_yaml, write_atomic
 from gentlerl.lazy import record_missing_pandas
+from gentlerl.objectives import MultiHeadD4PGLoss
 from gentlerl.rewards import IntrinsicRewards
 from gentlerl.training import resume
 from gentlerl.training.config import TrainConfig
@@ -124,11 +124,12 @@ def collection_env_factory(cfg: CollectorConfig, env_factory: EnvFactory) -> Env
 
 
 class AgentParts(NamedTuple):
-    """What a run trains, as :func:`make_agent` builds it."""
+    """What a run trains, as :func:`make_agent` builds it (the D4PG loss without its
+    :class:`~gentlerl.agent.Learner`: that is made once for the seeds that train together)."""
 
     builder: AgentBuilder
     rewards: IntrinsicRewards
-    learner: Learner
+    loss: MultiHeadD4PGLoss
     writer: NStepWriter
     rb: ReplayBuffer
     beta_schedule: LinearScheduler | None
@@ -145,11 +146,11 @@ def make_agent(
         builder = AgentBuilder(cfg, probe)
     finally:
         probe.close()
-    learner = builder.make_learner()
+    loss = builder.make_loss()
     col = cfg.collector
     updates = int(cfg.learner.utd_ratio * max(col.total_frames - col.init_random_frames, 0))
     writer, rb, beta_schedule = builder.make_replay(updates, builder.rewards.window_keys)
-    return AgentParts(builder, builder.rewards, learner, writer, rb, beta_schedule)
+    return AgentParts(builder, builder.rewards, loss, writer, rb, beta_schedule)
 
 
 def make_collector(

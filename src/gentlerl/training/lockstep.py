@@ -94,7 +94,8 @@ class Lockstep:
         self._priority_key = self.learner.loss.tensor_keys.priority
 
     def _share(self) -> None:
-        """One learner and one step per model kind over every seed's networks; seed s row s."""
+        """One learner and one step per model kind over every seed's networks, seed s row s:
+        built once, here (no seed builds its own)."""
         trainers, cfg = self.trainers, self.trainers[0].cfg
         launch = {"compile": cfg.learner.compile, "cudagraphs": cfg.learner.cudagraphs}
         learner = configured_learner([t.loss for t in trainers], cfg.learner)

@@ -24,6 +24,7 @@ from tensordict import TensorDictBase
 from torchrl import timeit
 from torchrl.envs import EnvBase
 
+from gentlerl.agent.builder import configured_learner
 from gentlerl.config.layout import RunLayout
 from gentlerl.deprecation import warn_deprecated
 from gentlerl.distributed.cluster import join_cluster
@@ -51,6 +52,7 @@ from gentlerl.training.run_lock import RunLock
 from gentlerl.training.seeding import rng_state
 
 if TYPE_CHECKING:
+    from gentlerl.agent import Learner
     from gentlerl.objectives import MultiHeadD4PGLoss
 
 
@@ -75,7 +77,8 @@ class Trainer:
         if cfg.collector.kind == "ray":  # Ray installed and the cluster reachable, or no run
             join_cluster(cfg.collector.ray_address)
         self.layout.root.mkdir(parents=True, exist_ok=True)
-        self.builder, self.rewards, self.learner = agent.builder, agent.rewards, agent.learner
+        self.builder, self.rewards, self._loss = agent.builder, agent.rewards, agent.loss
+        self._learner: Learner | None = None  # built on first use, or a group's given
         self.seat = 0  # this seed's row of the learner's and the models' stacked parameters
         self.writer, self.rb, self.beta_schedule = agent.writer, agent.rb, agent.beta_schedule
         self.counters = {"frames": 0, "updates": 0, "update_credit": 0.0}
@@ -105,7 +108,19 @@ class Trainer:
     @property
     def loss(self) -> MultiHeadD4PGLoss:
         """This seed's D4PG loss (its actor, critics and their targets)."""
-        return self.learner.losses[self.seat]
+        return self._loss
+
+    @property
+    def learner(self) -> Learner:
+        """The learner of this seed's :attr:`loss`: a seed group's (its row :attr:`seat`), else
+        its own, built on first use."""
+        if self._learner is None:
+            self._learner = configured_learner(self._loss, self.cfg.learner)
+        return self._learner
+
+    @learner.setter
+    def learner(self, learner: Learner) -> None:
+        self._learner = learner
 
     def open(self) -> tuple[dict[str, float] | None, RunLogger | None, EnvBase | None]:
         """Resume (a finished run: its final evaluation, nothing opened), then the logger and
