@@ -191,3 +191,33 @@ def test_a_group_with_normalised_heads_trains_each_seed_as_its_lone_run(tmp_path
     assert len(grouped) >= 1
     for (step_g, value_g), (step_l, value_l) in zip(grouped, lone, strict=True):
         assert step_g == step_l and value_g == pytest.approx(value_l, rel=1e-4, abs=1e-5)
+
+
+def test_a_group_whose_buffers_cannot_fit_the_free_memory_is_refused_before_any_folder(
+    tmp_path, monkeypatch
+):
+    """The finding: 64 seeds of the default recipe grew to the machine's memory and failed.
+    The toy env's step (both observations): its bytes x (the learner's and the models' kept
+    transitions, each at most the 300 frames) x 2 seeds is the least the group keeps; one byte
+    short of it is refused, in one line."""
+    from gentlerl.training import seed_group
+
+    cfgs = [tiny_config(tmp_path / f"s{seed}", seed=seed, total_frames=300) for seed in (0, 1)]
+    env = toy_env()
+    per_frame = env.rand_step(env.reset()).bytes()
+    need = 2 * (300 + 300) * per_frame
+    monkeypatch.setattr(seed_group, "available_memory", lambda: need - 1)
+    with pytest.raises(
+        ValueError, match=r"2 seeds would keep at least .* GB of transitions \(600 a seed x"
+    ):
+        train_seeds(cfgs, toy_env)
+    assert not any(tmp_path.iterdir())  # nothing made
+    monkeypatch.setattr(seed_group, "available_memory", lambda: need)
+    assert seed_group.group_memory_problem(cfgs, toy_env) is None
+    monkeypatch.setattr(seed_group, "available_memory", lambda: None)  # not Linux: not judged
+    assert seed_group.group_memory_problem(cfgs, toy_env) is None
+
+
+def test_the_free_memory_is_read_from_the_kernel():
+    free = __import__("gentlerl.training.seed_group", fromlist=["x"]).available_memory()
+    assert free is None or 0 < free < 2**50

@@ -15,7 +15,8 @@ train --help``, read and checked as a sweep's; ``seed``, ``run_dir`` and ``resum
 command's own. A group is refused in one line before any folder is made: a setting it does not
 batch (``gentleness.multiplier``), a run directory that holds a checkpoint (a group does not
 resume; one stopped before its first checkpoint starts again), repeated seeds, more than
-``MAX_SEEDS`` (64) seeds.
+``MAX_SEEDS`` (64) seeds, and a group whose replay buffers would not fit the machine's free
+memory (64 seeds of the default recipe keep at least 40.7 GB of transitions).
 """
 
 from __future__ import annotations

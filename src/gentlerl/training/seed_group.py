@@ -18,8 +18,9 @@ from contextlib import ExitStack
 
 from gentlerl.config.layout import RunLayout
 from gentlerl.files import folder_link_problem
-from gentlerl.training.builders import EnvFactory
+from gentlerl.training.builders import EnvFactory, default_env_factory
 from gentlerl.training.config import TrainConfig
+from gentlerl.training.env_probe import probe_env
 from gentlerl.training.lockstep import Lockstep
 from gentlerl.training.loop import Trainer
 from gentlerl.training.run_lock import RunLock
@@ -76,14 +77,54 @@ class SeedGroup(Lockstep):
         super().__init__([Trainer(cfg, env_factory) for cfg in cfgs])
 
 
+def available_memory() -> int | None:
+    """The bytes this machine can still give (Linux's ``MemAvailable``); ``None`` elsewhere."""
+    try:
+        with open("/proc/meminfo") as f:
+            fields = dict(line.split(":", 1) for line in f)
+    except (OSError, ValueError):
+        return None
+    kb = fields.get("MemAvailable", "").split()
+    return int(kb[0]) * 1024 if kb and kb[0].isdigit() else None
+
+
+def group_memory_problem(
+    cfgs: Sequence[TrainConfig], env_factory: EnvFactory | None = None
+) -> str | None:
+    """Why the replay buffers of ``cfgs`` would not fit this machine's free memory (``None``:
+    they would). A lower bound: each seed keeps ``min(total_frames, replay.buffer_size)``
+    transitions for the learner and ``min(total_frames, gentleness.model_buffer_size)`` for the
+    models, each at least the size of one step of the env (probed once, both observations),
+    before the keys the rewards and the n-step return add."""
+    cfg = cfgs[0]
+    env = probe_env(cfg, env_factory or default_env_factory(cfg))
+    try:
+        per_frame = env.rand_step(env.reset()).bytes()
+    finally:
+        env.close()
+    frames = cfg.collector.total_frames
+    stored = min(frames, cfg.replay.buffer_size) + min(frames, cfg.gentleness.model_buffer_size)
+    need, free = len(cfgs) * stored * per_frame, available_memory()
+    if free is None or need <= free:
+        return None
+    return (
+        f"{len(cfgs)} seeds would keep at least {need / 1e9:.1f} GB of transitions ({stored:,} "
+        f"a seed x {per_frame:,} bytes) and this machine has {free / 1e9:.1f} GB free: run fewer "
+        "seeds a group, or lower collector.total_frames or replay.buffer_size"
+    )
+
+
 def train_seeds(
     cfgs: Sequence[TrainConfig], env_factory: EnvFactory | None = None
 ) -> list[dict[str, float]]:
     """Train the seeds of ``cfgs`` as one :class:`SeedGroup`, each seed's run directory locked
     (one writer each, as :func:`~gentlerl.training.loop.train` holds it); each seed's final
-    evaluation."""
+    evaluation. Refused before any folder is made: :func:`group_problems`, and a group whose
+    buffers would not fit the free memory (:func:`group_memory_problem`)."""
     if problems := group_problems(cfgs):  # before any lock makes a folder
         raise ValueError("; ".join(problems))
+    if memory := group_memory_problem(cfgs, env_factory):
+        raise ValueError(memory)
     with ExitStack() as locks:
         for cfg in cfgs:
             locks.enter_context(RunLock(cfg.run_dir))
