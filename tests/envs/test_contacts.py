@@ -5,6 +5,7 @@ dm_control's walker and Gymnasium's Hopper through ``make_external_env``, and in
 import math
 
 import mujoco
+import numpy as np
 import pytest
 import torch
 from hydra import compose, initialize
@@ -311,3 +312,26 @@ def test_dm_control_manipulation_through_the_composer_source():
         ValueError, match="manipulation has no env lift_brik; known: \\['lift_brick"
     ):
         make_config(env={"name": "manipulation:lift_brik"})
+
+
+def test_after_a_dm_control_step_the_forces_are_read_of_one_state_and_the_run_is_untouched():
+    """The finding: dm_control's step leaves efc_force of the step before against the new
+    contacts; read as it is, walker's contact normals came out negative (31 of 341). Read
+    through settled(): never negative, and the env's own data is not changed."""
+    from dm_control import suite
+
+    from gentlerl.envs.contacts import contact_forces, settled
+
+    env = suite.load("walker", "walk", task_kwargs={"random": 0})
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    rng, scratch, normals, stale = np.random.default_rng(0), None, [], []
+    env.reset()
+    for _ in range(150):
+        env.step(rng.uniform(-1, 1, 6))
+        stale += contact_forces(model, data)[2].tolist()
+        before = (data.qacc.copy(), data.efc_force.copy())
+        scratch = settled(model, data, scratch)
+        normals += contact_forces(model, scratch)[2].tolist()
+        assert np.array_equal(data.qacc, before[0]) and np.array_equal(data.efc_force, before[1])
+    assert len(normals) > 50 and min(normals) >= 0.0
+    assert min(stale) < 0.0  # what the adapter read before

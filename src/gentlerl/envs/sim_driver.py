@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from gentlerl.envs.contacts import settled
 from gentlerl.envs.driver import N_JOINTS, N_SITES, DriverSpec, HandReading, check_targets
 from gentlerl.envs.factory import make_dm_env
 from gentlerl.envs.hand import CONTROL_TIMESTEP
@@ -108,6 +109,7 @@ class SimulatedDriver:
         self.n_sub_steps = int(round(CONTROL_TIMESTEP / self.physics.model.opt.timestep))
         self._block_geom = self.physics.model.geom("block").id
         self._wrench = np.zeros(6)
+        self._scratch = mujoco.MjData(self.physics.model.ptr)
 
     def seed(self, seed: int) -> None:
         """Re-seed the block placement and the sensor noise."""
@@ -128,13 +130,16 @@ class SimulatedDriver:
         return self.physics.touch()
 
     def block_force(self) -> float:
-        """Sum of the normal contact forces on the block (N)."""
-        data, model = self.physics.data, self.physics.model
+        """Sum of the normal contact forces on the block (N), of the current state's contacts
+        (:func:`~gentlerl.envs.contacts.settled`: dm_control's step leaves the constraint forces
+        of the step before, which read as negative normals)."""
+        model = self.physics.model.ptr
+        data = settled(model, self.physics.data.ptr, self._scratch)
         total = 0.0
         for i in range(data.ncon):
             contact = data.contact[i]
             if self._block_geom in (contact.geom1, contact.geom2):
-                mujoco.mj_contactForce(model.ptr, data.ptr, i, self._wrench)
+                mujoco.mj_contactForce(model, data, i, self._wrench)
                 total += self._wrench[0]
         return total
 
