@@ -36,7 +36,6 @@ WITHOUT_A_TEST = {
     "gentlerl.training.env_probe",
     "gentlerl.training.migration",  # old checkpoints' configs: tests/config/test_config.py
     "gentlerl.training.policy_weights",
-    "gentlerl.training.run_state",  # the multiplier's run state: tests/rewards/test_tolerance.py
     "gentlerl.training.seeding",
     "gentlerl.training.state_checks",
 }

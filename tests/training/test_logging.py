@@ -49,7 +49,8 @@ def test_an_unknown_logger_is_a_clear_error(tmp_path):
 
 def test_progress_bar_shows_one_speed(tmp_path):
     trainer = Trainer(tiny_config(tmp_path), toy_env)
-    assert set(progress_postfix([], trainer.eval_history)) == {"success", "max_impact", "eval"}
+    history = trainer.state.eval_history
+    assert set(progress_postfix([], history)) == {"success", "max_impact", "eval"}
 
 
 def test_checkpoint_without_buffers_is_smaller_and_resumes(tmp_path):

@@ -17,7 +17,6 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.training import Trainer, load_policy, make_config, train
 from gentlerl.training.evaluation import evaluate
 from gentlerl.training.logging import EVAL_COLUMNS, EpisodeStats, episode_transforms
-from gentlerl.training.run_eval import keep_best
 from gentlerl.transforms import ImpactPenalty
 from tests.helpers import read_scalar, tiny_config, toy_env
 from tests.toy_env import ToyHandEnv
@@ -132,7 +131,7 @@ def test_run_directory_follows_the_logging_contract(finished_run):
     with layout.eval_episodes.open() as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == EVAL_COLUMNS[:-1] and len(rows) == 1 + 2 * 2  # no tolerance: no cost
-    assert summary == {k: v for k, v in trainer.eval_history[-1].items() if k != "frames"}
+    assert summary == {k: v for k, v in trainer.state.eval_history[-1].items() if k != "frames"}
 
 
 def test_best_policy_is_the_best_evaluation_of_the_run(finished_run):
@@ -141,10 +140,10 @@ def test_best_policy_is_the_best_evaluation_of_the_run(finished_run):
     def rank(r):
         return (r["success_rate"], -r["broken_rate"], -r["max_impact_mean"])
 
-    best = max(trainer.eval_history, key=rank)  # ties: the earliest evaluation stays
+    best = max(trainer.state.eval_history, key=rank)  # ties: the earliest evaluation stays
     path = RunLayout(run_dir).best_policy
     state = torch.load(path, weights_only=False)
-    assert state["eval"] == best == trainer.best_eval
+    assert state["eval"] == best == trainer.state.best_eval
     cfg, actor = load_policy(path)
     assert cfg.variant == "r+rf+rsp" and set(actor.state_dict()) == set(state["actor"])
 
@@ -155,7 +154,7 @@ def test_best_policy_ranks_success_then_breaks_then_impact(tmp_path):
 
     def offer(frames, success, broken, impact):
         result = dict(frames=frames, success_rate=success, broken_rate=broken)
-        keep_best(trainer, {**result, "max_impact_mean": impact, "return": 0.0})
+        trainer.keep_best({**result, "max_impact_mean": impact, "return": 0.0})
         return torch.load(path, weights_only=False)["eval"]["frames"]
 
     assert offer(1, 0.5, 0.0, 1.0) == 1
@@ -292,7 +291,7 @@ def test_default_recipe_learns_touch(tmp_path):
     trainer.run()
     learned = [
         e["success_rate"]
-        for e in trainer.eval_history
+        for e in trainer.state.eval_history
         if e["frames"] > cfg.collector.init_random_frames
     ]
     assert max(learned) >= 0.8

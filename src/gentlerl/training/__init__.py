@@ -17,8 +17,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "make_eval_env",
             "summarize",
         ),
-        "gentlerl.training.lockstep": ("Lockstep",),
-        "gentlerl.training.loop": ("Trainer", "train"),
+        "gentlerl.training.loop": ("Lockstep", "Trainer", "train"),
         "gentlerl.training.seed_group": ("SeedGroup", "train_seeds"),
     },
 )

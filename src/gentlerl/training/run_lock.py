@@ -21,7 +21,7 @@ from gentlerl.config.layout import RunLayout
 from gentlerl.files import LinkRefusedError, folder_link_problem, links_under
 
 #: The run directories whose lock this process holds (resolved), so that a driver taking the
-#: locks of its runs (:class:`~gentlerl.training.lockstep.Lockstep`) does not take one its
+#: locks of its runs (:class:`~gentlerl.training.loop.Lockstep`) does not take one its
 #: caller holds (``flock`` would refuse this process its own lock).
 #: Each entry names its process: a forked child inherits the set, not the locks.
 _HELD: set[tuple[int, Path]] = set()

@@ -1,6 +1,6 @@
 """Several seeds of one run in one process: each seed a run of its own, their updates one step.
 
-A :class:`SeedGroup` is the :class:`~gentlerl.training.lockstep.Lockstep` of S seeds' configs,
+A :class:`SeedGroup` is the :class:`~gentlerl.training.loop.Lockstep` of S seeds' configs,
 equal but for ``seed`` and ``run_dir``, checked first (:func:`group_problems`): each seed keeps
 its env stream, exploration noise, replay buffers, reward transforms, evaluations, logs and
 checkpoints in its own run directory, and its checkpoint resumes as a run of its own
@@ -21,8 +21,7 @@ from gentlerl.files import folder_link_problem
 from gentlerl.training.builders import EnvFactory, default_env_factory
 from gentlerl.training.config import TrainConfig
 from gentlerl.training.env_probe import probe_env
-from gentlerl.training.lockstep import Lockstep
-from gentlerl.training.loop import Trainer
+from gentlerl.training.loop import Lockstep, Trainer
 from gentlerl.training.run_lock import RunLock
 
 #: The settings in which a group's seeds may differ.

@@ -3,15 +3,10 @@
 from __future__ import annotations
 
 import random
-from collections.abc import Iterator
-from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
-
-if TYPE_CHECKING:
-    from gentlerl.training.seed_run import SeedRun
 
 
 def seed_everything(seed: int) -> None:
@@ -35,15 +30,3 @@ def set_rng_state(state: dict[str, Any]) -> None:
     random.setstate(state["python"])
     np.random.set_state(state["numpy"])
     torch.set_rng_state(state["torch"])
-
-
-@contextmanager
-def own_stream(run: SeedRun) -> Iterator[None]:
-    """Within: the process's generators hold ``run.rng`` (a :func:`rng_state`); after: the state
-    they reached is kept in ``run.rng``. Each seed of a group draws from its own continuing
-    stream, as it would alone, whatever the other seeds draw in between."""
-    set_rng_state(run.rng)
-    try:
-        yield
-    finally:
-        run.rng = rng_state()
