@@ -48,15 +48,20 @@ def test_driver_example_end_to_end(tmp_path):
     spec = importlib.util.spec_from_file_location("driver_touch", RECIPES / "driver_touch.py")
     recipe = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(recipe)
-    results = recipe.main(["--run-dir", str(tmp_path), "--total-frames", "400", "--env", "both"])
-    assert json.loads((tmp_path / "results.json").read_text()) == results
+    results = recipe.main(["--run-dir", str(tmp_path), "--total-frames", "800", "--env", "both"])
+    # the file holds what the recipe returned (NaN where a run has no such episode: dumped on
+    # both sides, as NaN does not equal itself)
+    saved = json.loads((tmp_path / "results.json").read_text())
+    assert json.dumps(saved, sort_keys=True) == json.dumps(results, sort_keys=True)
     assert results["sensor_map"]["held_out"]["rmse_pressed_N"] < 0.3
     sensor_map = TouchSensorMap.load(tmp_path / "touch_sensor_map.pt")
     assert bool(sensor_map.fitted) and sensor_map.shape == (5, 1)
     for env in ("driver", "sim"):
         assert 0.0 <= results[env]["eval_final"]["success_rate"] <= 1.0
-        assert results[env]["train_episodes"] >= 2  # 400 frames of <= 200-step episodes
+        # 800 frames: at 400 the simulated env finished no training episode (2026-12-08, the
+        # driver's 3); at 800 it finished 4 (the driver's 8)
+        assert results[env]["train_episodes"] >= 2
     total = results["driver"]["watchdog_total"]
     # Every step of the collector's and the evaluation env's episodes is checked.
-    assert total["checks"] >= 400
+    assert total["checks"] >= 800
     assert max(total["fingertip_trips"], total["block_trips"]) <= total["trips"]
