@@ -27,6 +27,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 from gentlerl.training import make_config, train
 from tests.toy_env import ToyHandEnv
@@ -101,10 +102,24 @@ LATE_REL = 1e-3
 #: inside), while its first 50 updates agree to 2.0e-7 and its other series stay within 3.6e-5.
 #: The default run checks all but that actor loss's late tier
 #: (:func:`test_the_icm_variant_matches_but_for_its_late_actor_loss`).
+#: On that code path the slow r+icm comparison is an expected failure (the drift above, measured
+#: again on 2026-12-08: ``loss_actor[183]`` -1.5659 against the recorded -1.5704); elsewhere it
+#: must pass.
+_ICM_DRIFTS = torch.backends.cpu.get_cpu_capability() == "AVX512"
 VARIANTS = (
     "r+rf+rsp",
     "r+rf+rs",
-    pytest.param("r+icm", marks=pytest.mark.slow),
+    pytest.param(
+        "r+icm",
+        marks=[
+            pytest.mark.slow,
+            pytest.mark.xfail(
+                _ICM_DRIFTS,
+                reason="AVX-512: r+icm's late actor loss drifts 2.8e-3 of its series (measured)",
+                strict=True,
+            ),
+        ],
+    ),
 )
 
 
