@@ -13,7 +13,7 @@ dst=experiments/method4/$suite
 mkdir -p "$dst"
 cp "$src/results.csv" "$dst/results.csv"
 for run in "$src"/*/*/seed*; do
-  [ -f "$run/eval_episodes.csv" ] || continue  # a run still training
+  [ -f "$run/DONE" ] || continue  # a run still training (its in-loop evaluations are partial)
   rel=${run#"$src"/}
   mkdir -p "$dst/$rel"
   cp "$run/eval_episodes.csv" "$run/config.yaml" "$dst/$rel/"
