@@ -36,6 +36,7 @@ from typing import Any
 from gentlerl import keys
 from gentlerl.functional import lagrangian_weights, pid_lagrangian
 from gentlerl.functional.constraint import check_gains, is_finite_number
+from gentlerl.rewards.multiplier import is_window, window_state
 
 #: Finished episodes whose mean cost is the constraint's :math:`J_c`.
 WINDOW = 10
@@ -151,15 +152,7 @@ class CostLagrangian:
         }
 
     def state_dict(self) -> dict[str, Any]:
-        return {
-            "recent": list(self.recent),
-            "multiplier": self.multiplier,
-            "integral": self.integral,
-            "cost": self.cost,
-            "episodes": self.episodes,
-            "steps": self.steps,
-            "frames": self.frames,
-        }
+        return window_state(self)
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`state_dict`'s entries, each checked first (nothing changes on a
@@ -191,11 +184,7 @@ def _is_count(value: object) -> bool:
 
 def _valid(name: str, value: object, integral_max: float) -> bool:
     if name == "recent":
-        return (
-            isinstance(value, Sequence)
-            and not isinstance(value, str)
-            and all(is_finite_number(x) and x >= 0 for x in value)
-        )
+        return is_window(value)
     if name in ("episodes", "steps"):
         return _is_count(value)
     if name == "frames":  # -1: none yet

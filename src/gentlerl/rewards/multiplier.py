@@ -172,15 +172,7 @@ class ImpactMultiplier:
         }
 
     def state_dict(self) -> dict[str, Any]:
-        return {
-            "recent": list(self.recent),
-            "multiplier": self.multiplier,
-            "integral": self.integral,
-            "cost": self.cost,
-            "episodes": self.episodes,
-            "steps": self.steps,
-            "frames": self.frames,
-        }
+        return window_state(self)
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`state_dict`'s entries, each checked first (a tampered or corrupt one
@@ -191,11 +183,7 @@ class ImpactMultiplier:
         # saved before the period existed: one step per episode, no frames seen
         state = {"steps": state["episodes"], "frames": -1, **state}
         recent = state["recent"]
-        if not (
-            isinstance(recent, Sequence)
-            and not isinstance(recent, str)
-            and all(is_finite_number(x) and x >= 0 for x in recent)
-        ):
+        if not is_window(recent):
             _refuse("recent", recent, "a list of finite impacts >= 0")
         checks = {
             "multiplier": (is_finite_number, 0.0, math.inf, "a finite number >= 0"),
@@ -216,6 +204,27 @@ class ImpactMultiplier:
         self.multiplier, self.integral = float(state["multiplier"]), float(state["integral"])
         self.cost, self.episodes = float(state["cost"]), int(state["episodes"])
         self.steps, self.frames = int(state["steps"]), int(state["frames"])
+
+
+#: What a windowed PID controller saves (:class:`ImpactMultiplier`,
+#: :class:`~gentlerl.rewards.lagrangian.CostLagrangian`): its window, multiplier and integral,
+#: last cost and its counters.
+WINDOW_STATE = ("recent", "multiplier", "integral", "cost", "episodes", "steps", "frames")
+
+
+def window_state(controller: Any) -> dict[str, Any]:
+    """The :data:`WINDOW_STATE` entries of ``controller`` (its window as a list)."""
+    state = {name: getattr(controller, name) for name in WINDOW_STATE}
+    return {**state, "recent": list(state["recent"])}
+
+
+def is_window(recent: object) -> bool:
+    """Whether a saved window ``recent`` is a list of finite numbers >= 0."""
+    return (
+        isinstance(recent, Sequence)
+        and not isinstance(recent, str)
+        and all(is_finite_number(x) and x >= 0 for x in recent)
+    )
 
 
 def _is_integer(value: object) -> bool:
